@@ -1,0 +1,17 @@
+//! Rendering for supersvg: the path layout every crate shares, the differentiable soft
+//! rasterizer used for training, the exact tiny-skia renderer used for pictures and metrics, SVG
+//! export, and the choice of compute backend.
+
+pub mod device;
+mod exact;
+mod path;
+mod shapes;
+mod soft;
+mod svg;
+
+pub use device::{Backend, BackendError};
+pub use exact::{render_exact, skia_outline};
+pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS};
+pub use shapes::{random_blob, random_scene};
+pub use soft::{SoftRasterOptions, coverage_soft, paint_soft, render_soft};
+pub use svg::{SvgError, to_svg};

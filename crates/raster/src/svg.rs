@@ -1,0 +1,132 @@
+//! SVG export: one `<path>` per visible path, in painter's order.
+
+use std::fmt::Write;
+
+use crate::path::{Path, SEGMENTS};
+
+/// Why a set of paths cannot be written as SVG.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SvgError {
+    /// A canvas side is zero.
+    #[error("the canvas is empty ({width}×{height})")]
+    EmptyCanvas {
+        /// Canvas width in pixels.
+        width: u32,
+        /// Canvas height in pixels.
+        height: u32,
+    },
+    /// A path has a NaN or infinite coordinate, colour or opacity.
+    #[error("path {index} has a non-finite parameter")]
+    NonFinite {
+        /// Index of the offending path in the input.
+        index: usize,
+    },
+}
+
+/// Writes `paths` (unit-square coordinates) as an SVG document of `width × height` pixels.
+///
+/// The viewBox is in pixels; a background rectangle is painted first when `background` is given.
+/// Paths with α ≤ 0 are invisible and left out; `fill-opacity` is written when α < 1; every path
+/// says `fill-rule="nonzero"` so all viewers fill self-intersections the way the renderers do.
+/// Colours and α are clamped to [0, 1]. Coordinates are written with 1/100 pixel precision.
+pub fn to_svg(
+    paths: &[Path],
+    width: u32,
+    height: u32,
+    background: Option<[f32; 3]>,
+) -> Result<String, SvgError> {
+    if width == 0 || height == 0 {
+        return Err(SvgError::EmptyCanvas { width, height });
+    }
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" \
+         viewBox=\"0 0 {width} {height}\">\n"
+    );
+    if let Some(color) = background {
+        let _ = writeln!(svg, "<rect width=\"{width}\" height=\"{height}\" fill=\"{}\"/>", hex(color));
+    }
+    let (sx, sy) = (width as f32, height as f32);
+    for (index, path) in paths.iter().enumerate() {
+        let finite = path.points.iter().flatten().chain(&path.color).all(|v| v.is_finite());
+        if !finite || !path.alpha.is_finite() {
+            return Err(SvgError::NonFinite { index });
+        }
+        if path.alpha <= 0.0 {
+            continue;
+        }
+        let point = |[x, y]: [f32; 2]| format!("{} {}", number(x * sx), number(y * sy));
+        let mut d = format!("M{}", point(path.points[0]));
+        for j in 0..SEGMENTS {
+            let [_, c1, c2, end] = path.segment(j);
+            let _ = write!(d, "C{} {} {}", point(c1), point(c2), point(end));
+        }
+        d.push('Z');
+        let _ = write!(svg, "<path d=\"{d}\" fill=\"{}\"", hex(path.color));
+        if path.alpha < 1.0 {
+            let _ = write!(svg, " fill-opacity=\"{}\"", number(path.alpha));
+        }
+        svg.push_str(" fill-rule=\"nonzero\"/>\n");
+    }
+    svg.push_str("</svg>\n");
+    Ok(svg)
+}
+
+/// `#rrggbb` of a colour in [0, 1] (clamped).
+fn hex(color: [f32; 3]) -> String {
+    let [r, g, b] = color.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+    format!("#{r:02x}{g:02x}{b:02x}")
+}
+
+/// A number with at most two decimals and no trailing zeros (`12`, `3.5`, `-0.25`).
+fn number(value: f32) -> String {
+    let text = format!("{value:.2}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" { "0".to_string() } else { text.to_string() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(alpha: f32) -> Path {
+        let corners = [[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]];
+        let mut points = [[0.0; 2]; 12];
+        for (j, corner) in corners.iter().enumerate() {
+            let next = corners[(j + 1) % 4];
+            let lerp =
+                |t: f32| [corner[0] + t * (next[0] - corner[0]), corner[1] + t * (next[1] - corner[1])];
+            points[3 * j] = *corner;
+            points[3 * j + 1] = lerp(1.0 / 3.0);
+            points[3 * j + 2] = lerp(2.0 / 3.0);
+        }
+        Path { points, color: [1.0, 0.5, 0.0], alpha }
+    }
+
+    #[test]
+    fn writes_visible_paths_with_rule_and_opacity() {
+        let svg = to_svg(&[square(1.0), square(0.0), square(0.5)], 100, 50, Some([1.0; 3])).unwrap();
+        assert_eq!(svg.matches("<path").count(), 2);
+        assert!(svg.contains("viewBox=\"0 0 100 50\""));
+        assert!(svg.contains("<rect width=\"100\" height=\"50\" fill=\"#ffffff\"/>"));
+        assert!(svg.contains("M25 12.5C"));
+        assert!(svg.contains("fill=\"#ff8000\""));
+        assert_eq!(svg.matches("fill-opacity=\"0.5\"").count(), 1);
+        assert_eq!(svg.matches("fill-rule=\"nonzero\"").count(), 2);
+    }
+
+    #[test]
+    fn rejects_non_finite_and_empty_canvas() {
+        let mut bad = square(1.0);
+        bad.points[4][1] = f32::NAN;
+        assert_eq!(to_svg(&[square(1.0), bad], 10, 10, None), Err(SvgError::NonFinite { index: 1 }));
+        assert!(matches!(to_svg(&[], 0, 10, None), Err(SvgError::EmptyCanvas { .. })));
+    }
+
+    #[test]
+    fn numbers_are_short() {
+        assert_eq!(number(12.0), "12");
+        assert_eq!(number(3.5), "3.5");
+        assert_eq!(number(-0.001), "0");
+        assert_eq!(number(0.126), "0.13");
+    }
+}
