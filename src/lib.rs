@@ -1,8 +1,11 @@
 //! supersvg: image vectorization (raster → SVG) with the SuperSVG method, in pure Rust on burn.
 //!
 //! This crate gathers the workspace's crates under one name and hosts the cross-crate tests in
-//! `tests/`.
+//! `tests/`. Each stage has its own crate:
 //!
-//! - [`raster`]: the path layout, the differentiable soft rasterizer, the exact renderer, SVG.
+//! - [`raster`]: the path layout, the differentiable soft rasterizer, the exact renderer, SVG;
+//! - [`dpw`]: the training objectives (normalized L2, boundary, path efficiency, DPW);
+//! - [`superpixel`]: SLIC, region crops and paste-back;
+//! - [`model`]: the coarse and refinement networks and their checkpoints;
 
-pub use raster;
+pub use {dpw, model, raster, superpixel};
