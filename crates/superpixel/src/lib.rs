@@ -1,0 +1,15 @@
+//! Superpixels for SuperSVG: SLIC segmentation (Achanta et al. 2012), per-region crops resized to
+//! the model's input, and the map from a crop's unit square back to the image.
+//!
+//! Pure Rust on CPU buffers, parallel with rayon; shared by training (random region crops) and
+//! inference (every region of an image).
+
+mod color;
+mod connectivity;
+mod crop;
+mod input;
+mod slic;
+
+pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
+pub use input::{InputError, to_rgb_over_white};
+pub use slic::{BoundingBox, Region, Segmentation, SlicError, SlicOptions, slic};

@@ -1,0 +1,351 @@
+//! SLIC: simple linear iterative clustering in CIELAB × image plane (Achanta et al., TPAMI 2012).
+
+use image::Rgb32FImage;
+use rayon::prelude::*;
+
+use crate::color::{gaussian_blur, srgb_to_lab};
+use crate::connectivity::enforce_connectivity;
+
+/// Options of [`slic`]; the defaults are the method's (compactness 30) and scikit-image's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlicOptions {
+    /// Approximate number of regions wanted.
+    pub n_segments: usize,
+    /// Weight of spatial against colour distance: higher gives more regular, more square regions.
+    pub compactness: f32,
+    /// Standard deviation in pixels of the Gaussian pre-smoothing (0 turns it off).
+    pub sigma: f32,
+    /// Upper bound on assignment/update rounds (stops early once no pixel changes region).
+    pub max_iterations: usize,
+    /// Make every region one 4-connected piece, merging fragments smaller than
+    /// `min_size_factor` × the mean region size into a neighbour.
+    pub enforce_connectivity: bool,
+    /// See `enforce_connectivity`.
+    pub min_size_factor: f32,
+}
+
+impl Default for SlicOptions {
+    fn default() -> Self {
+        Self {
+            n_segments: 100,
+            compactness: 30.0,
+            sigma: 1.0,
+            max_iterations: 10,
+            enforce_connectivity: true,
+            min_size_factor: 0.5,
+        }
+    }
+}
+
+/// Why an image cannot be segmented.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SlicError {
+    /// The image has no pixels.
+    #[error("the image is empty ({width}×{height})")]
+    EmptyImage {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
+    /// `n_segments` is 0 or larger than the number of pixels.
+    #[error("cannot split {pixels} pixels into {n_segments} regions")]
+    BadSegmentCount {
+        /// Requested region count.
+        n_segments: usize,
+        /// Pixels in the image.
+        pixels: usize,
+    },
+    /// An option is out of range.
+    #[error("invalid SLIC option: {0}")]
+    BadOption(&'static str),
+}
+
+/// A half-open pixel rectangle `[x0, x1) × [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoundingBox {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl BoundingBox {
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+}
+
+/// What a region is: size, extent and mean colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Region {
+    /// Number of pixels.
+    pub pixels: usize,
+    /// Tight bounding box.
+    pub bbox: BoundingBox,
+    /// Mean RGB of the region's pixels in the input image.
+    pub mean_color: [f32; 3],
+}
+
+/// A label map with labels `0..regions.len()`, every label used, plus per-region statistics.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segmentation {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Row-major label of every pixel.
+    pub labels: Vec<u32>,
+    /// Statistics of region `r` at index `r`.
+    pub regions: Vec<Region>,
+}
+
+impl Segmentation {
+    /// Label of pixel (x, y).
+    pub fn label(&self, x: u32, y: u32) -> u32 {
+        self.labels[(y * self.width + x) as usize]
+    }
+
+    /// Builds the segmentation of `image` from a label map whose labels are `0..count`, all used.
+    pub(crate) fn from_labels(image: &Rgb32FImage, labels: Vec<u32>, count: usize) -> Self {
+        let (width, height) = image.dimensions();
+        let empty = Region {
+            pixels: 0,
+            bbox: BoundingBox { x0: width, y0: height, x1: 0, y1: 0 },
+            mean_color: [0.0; 3],
+        };
+        let mut regions = vec![empty; count];
+        for (index, pixel) in image.pixels().enumerate() {
+            let (x, y) = (index as u32 % width, index as u32 / width);
+            let region = &mut regions[labels[index] as usize];
+            region.pixels += 1;
+            let bbox = &mut region.bbox;
+            (bbox.x0, bbox.y0) = (bbox.x0.min(x), bbox.y0.min(y));
+            (bbox.x1, bbox.y1) = (bbox.x1.max(x + 1), bbox.y1.max(y + 1));
+            for c in 0..3 {
+                region.mean_color[c] += pixel.0[c];
+            }
+        }
+        for region in &mut regions {
+            region.mean_color = region.mean_color.map(|sum| sum / region.pixels.max(1) as f32);
+        }
+        Self { width, height, labels, regions }
+    }
+}
+
+/// A cluster centre: colour in CIELAB and position in pixels.
+#[derive(Clone, Copy, Debug, Default)]
+struct Center {
+    lab: [f32; 3],
+    x: f32,
+    y: f32,
+}
+
+/// Segments `image` (RGB in [0, 1]) into about `options.n_segments` superpixels.
+///
+/// Centres start on a regular grid of step `S = √(pixels / n_segments)`, each moved to the lowest
+/// CIELAB gradient of its 3×3 neighbourhood. Each round assigns every pixel to the centre within
+/// one grid cell (±S) minimizing `d_lab² + (d_xy / S)² · compactness²`, then moves every centre to
+/// the mean of its pixels. Deterministic; parallel over rows.
+pub fn slic(image: &Rgb32FImage, options: &SlicOptions) -> Result<Segmentation, SlicError> {
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    let pixels = width * height;
+    if pixels == 0 {
+        return Err(SlicError::EmptyImage { width: image.width(), height: image.height() });
+    }
+    if options.n_segments == 0 || options.n_segments > pixels {
+        return Err(SlicError::BadSegmentCount { n_segments: options.n_segments, pixels });
+    }
+    if !(options.compactness > 0.0 && options.compactness.is_finite()) {
+        return Err(SlicError::BadOption("compactness must be positive"));
+    }
+    if !(options.sigma >= 0.0 && options.sigma.is_finite()) {
+        return Err(SlicError::BadOption("sigma must be zero or positive"));
+    }
+
+    let rgb: Vec<[f32; 3]> = image.pixels().map(|p| p.0).collect();
+    let lab: Vec<[f32; 3]> =
+        gaussian_blur(&rgb, width, height, options.sigma).into_par_iter().map(srgb_to_lab).collect();
+    let grid = Grid::new(width, height, options.n_segments);
+    let mut centers = grid.initial_centers(&lab);
+    let spatial_weight = (options.compactness / grid.step).powi(2);
+
+    let mut labels = vec![u32::MAX; pixels];
+    for _ in 0..options.max_iterations.max(1) {
+        let buckets = grid.bucket(&centers);
+        let changed: usize = labels
+            .par_chunks_mut(width)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut changed = 0;
+                for (x, label) in row.iter_mut().enumerate() {
+                    let nearest = grid.nearest(&buckets, &centers, lab[y * width + x], x, y, spatial_weight);
+                    changed += usize::from(*label != nearest);
+                    *label = nearest;
+                }
+                changed
+            })
+            .sum();
+        update_centers(&mut centers, &labels, &lab, width);
+        if changed == 0 {
+            break;
+        }
+    }
+
+    let (labels, count) = if options.enforce_connectivity {
+        let min_size = (options.min_size_factor * pixels as f32 / centers.len() as f32) as usize;
+        enforce_connectivity(&labels, width, height, min_size)
+    } else {
+        crate::connectivity::relabel(&labels)
+    };
+    Ok(Segmentation::from_labels(image, labels, count))
+}
+
+/// Moves every centre to the mean colour and position of its pixels (empty ones stay put).
+fn update_centers(centers: &mut [Center], labels: &[u32], lab: &[[f32; 3]], width: usize) {
+    let zero = || vec![[0.0f64; 6]; centers.len()];
+    let sums = labels
+        .par_chunks(width)
+        .enumerate()
+        .fold(zero, |mut sums, (y, row)| {
+            for (x, &label) in row.iter().enumerate() {
+                let [l, a, b] = lab[y * width + x];
+                let s = &mut sums[label as usize];
+                for (acc, v) in s.iter_mut().zip([l, a, b, x as f32, y as f32, 1.0]) {
+                    *acc += v as f64;
+                }
+            }
+            sums
+        })
+        .reduce(zero, |mut left, right| {
+            for (l, r) in left.iter_mut().zip(right) {
+                l.iter_mut().zip(r).for_each(|(a, b)| *a += b);
+            }
+            left
+        });
+    for (center, s) in centers.iter_mut().zip(sums) {
+        let count = s[5];
+        if count > 0.0 {
+            let mean = |i: usize| (s[i] / count) as f32;
+            *center = Center { lab: [mean(0), mean(1), mean(2)], x: mean(3), y: mean(4) };
+        }
+    }
+}
+
+/// The regular grid of initial centres, reused each round to find the centres near a pixel.
+struct Grid {
+    width: usize,
+    height: usize,
+    columns: usize,
+    rows: usize,
+    cell_width: f32,
+    cell_height: f32,
+    step: f32,
+}
+
+impl Grid {
+    fn new(width: usize, height: usize, n_segments: usize) -> Self {
+        let step = ((width * height) as f32 / n_segments as f32).sqrt();
+        let columns = ((width as f32 / step).round() as usize).clamp(1, width);
+        let rows = ((height as f32 / step).round() as usize).clamp(1, height);
+        Self {
+            width,
+            height,
+            columns,
+            rows,
+            cell_width: width as f32 / columns as f32,
+            cell_height: height as f32 / rows as f32,
+            step,
+        }
+    }
+
+    /// Grid cell of a position, clamped to the grid.
+    fn cell(&self, x: f32, y: f32) -> (usize, usize) {
+        let column = ((x / self.cell_width) as usize).min(self.columns - 1);
+        let row = ((y / self.cell_height) as usize).min(self.rows - 1);
+        (column, row)
+    }
+
+    /// One centre per cell at its middle, moved to the lowest-gradient pixel of its 3×3
+    /// neighbourhood so it does not start on an edge or a noisy pixel.
+    fn initial_centers(&self, lab: &[[f32; 3]]) -> Vec<Center> {
+        let (w, h) = (self.width as isize, self.height as isize);
+        let at = |x: isize, y: isize| lab[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
+        let distance = |a: [f32; 3], b: [f32; 3]| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f32>();
+        let gradient =
+            |x: isize, y: isize| distance(at(x + 1, y), at(x - 1, y)) + distance(at(x, y + 1), at(x, y - 1));
+        (0..self.rows * self.columns)
+            .map(|i| {
+                let cx = ((i % self.columns) as f32 + 0.5) * self.cell_width;
+                let cy = ((i / self.columns) as f32 + 0.5) * self.cell_height;
+                let (x, y) = (cx as isize, cy as isize);
+                let (bx, by) = (-1..=1)
+                    .flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
+                    .filter(|&(px, py)| (0..w).contains(&px) && (0..h).contains(&py))
+                    .min_by(|a, b| gradient(a.0, a.1).total_cmp(&gradient(b.0, b.1)))
+                    .unwrap_or((x.clamp(0, w - 1), y.clamp(0, h - 1)));
+                Center { lab: at(bx, by), x: bx as f32 + 0.5, y: by as f32 + 0.5 }
+            })
+            .collect()
+    }
+
+    /// Centre indices per grid cell, by the centres' current positions.
+    fn bucket(&self, centers: &[Center]) -> Vec<Vec<u32>> {
+        let mut buckets = vec![Vec::new(); self.columns * self.rows];
+        for (index, center) in centers.iter().enumerate() {
+            let (column, row) = self.cell(center.x, center.y);
+            buckets[row * self.columns + column].push(index as u32);
+        }
+        buckets
+    }
+
+    /// The best centre for pixel (x, y): among the centres of the 3×3 cells around it, those
+    /// within one cell in each direction (the 2S × 2S window of SLIC); any of the 3×3 cells'
+    /// centres if none is that close; the nearest centre overall if those cells are empty.
+    fn nearest(
+        &self,
+        buckets: &[Vec<u32>],
+        centers: &[Center],
+        lab: [f32; 3],
+        x: usize,
+        y: usize,
+        spatial_weight: f32,
+    ) -> u32 {
+        let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+        let (column, row) = self.cell(px, py);
+        let distance = |c: &Center| {
+            let color: f32 = (0..3).map(|i| (lab[i] - c.lab[i]).powi(2)).sum();
+            color + ((c.x - px).powi(2) + (c.y - py).powi(2)) * spatial_weight
+        };
+        let (mut in_window, mut nearby) = ((f32::INFINITY, None), (f32::INFINITY, None));
+        for r in row.saturating_sub(1)..=(row + 1).min(self.rows - 1) {
+            for c in column.saturating_sub(1)..=(column + 1).min(self.columns - 1) {
+                for &index in &buckets[r * self.columns + c] {
+                    let center = &centers[index as usize];
+                    let d = distance(center);
+                    let close =
+                        (center.x - px).abs() <= self.cell_width && (center.y - py).abs() <= self.cell_height;
+                    let slot = if close { &mut in_window } else { &mut nearby };
+                    if d < slot.0 {
+                        *slot = (d, Some(index));
+                    }
+                }
+            }
+        }
+        in_window.1.or(nearby.1).unwrap_or_else(|| {
+            (0..centers.len() as u32)
+                .min_by(|&a, &b| distance(&centers[a as usize]).total_cmp(&distance(&centers[b as usize])))
+                .expect("there is at least one centre")
+        })
+    }
+}
