@@ -1,0 +1,256 @@
+//! Checkpoint files: one burnpack file holding a model's weights, its configuration and stage,
+//! and, for training, the optimizer state and the trainer's own state.
+//!
+//! Tensors are stored under `model/…` and `optimizer/…`; metadata keys are `supersvg.format`,
+//! `supersvg.stage`, `supersvg.model` (the [`ModelConfig`] as JSON) and `supersvg.training` (an
+//! opaque JSON string owned by the trainer). Loading needs no flags: the configuration rebuilds
+//! the model before its weights are applied. Writes are atomic (a scratch file renamed over the
+//! target), so an interrupted save never leaves a partial checkpoint.
+
+use std::path::{Path, PathBuf};
+
+use burn::module::Module;
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, DType, Device, TensorData};
+use burn_pack::{Reader, Writer};
+
+use crate::coarse::CoarseModel;
+use crate::config::ModelConfig;
+use crate::refine::RefineModel;
+
+const FORMAT: &str = "supersvg-checkpoint/1";
+const MODEL_PREFIX: &str = "model/";
+const OPTIMIZER_PREFIX: &str = "optimizer/";
+
+/// Which network a checkpoint holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// The coarse model E_c.
+    Coarse,
+    /// The refinement model E_r.
+    Refine,
+}
+
+impl Stage {
+    fn name(self) -> &'static str {
+        match self {
+            Stage::Coarse => "coarse",
+            Stage::Refine => "refine",
+        }
+    }
+}
+
+/// Why a checkpoint could not be written, read or applied. Every message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    /// The file could not be read or written, or is not a burnpack file.
+    #[error("{path}: {message}")]
+    Io {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The file is a burnpack file but not a supersvg checkpoint, or its metadata is damaged.
+    #[error("{path}: not a supersvg checkpoint ({message})")]
+    Format {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// What is missing or wrong.
+        message: String,
+    },
+    /// The checkpoint holds the other network.
+    #[error("{path}: this is a {found} checkpoint, a {expected} checkpoint is needed here")]
+    WrongStage {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// The stage that was asked for.
+        expected: &'static str,
+        /// The stage the file holds.
+        found: String,
+    },
+    /// The weights do not fit the model they are loaded into.
+    #[error("{path}: the weights do not fit the model: {message}")]
+    Mismatch {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// Which parameter differs, and how.
+        message: String,
+    },
+}
+
+/// The contents of a checkpoint file.
+#[derive(Clone)]
+pub struct Checkpoint {
+    /// Which network the weights belong to.
+    pub stage: Stage,
+    /// The network's configuration.
+    pub model_config: ModelConfig,
+    /// The weights, as burnpack bytes of a [`ModuleRecord`].
+    pub model: Bytes,
+    /// The optimizer state, as burnpack bytes, when the checkpoint is for resuming training.
+    pub optimizer: Option<Bytes>,
+    /// The trainer's own state as JSON (step, schedules, data order…), opaque here.
+    pub training: Option<String>,
+}
+
+impl Checkpoint {
+    /// A checkpoint of `model`'s current weights, stored in `dtype` (F32 for training, F16 to
+    /// ship smaller files; loading converts back to the model's dtype).
+    pub fn of_model<M: Module>(stage: Stage, model_config: &ModelConfig, model: &M, dtype: DType) -> Self {
+        let record = model.clone().into_record().into_bytes().expect("a record serializes to memory");
+        let entries = entries(&record)
+            .expect("a fresh record reads back")
+            .into_iter()
+            .map(|entry| Entry { data: entry.data.convert_dtype(dtype), ..entry })
+            .collect();
+        let model = pack(entries).expect("converted tensors serialize");
+        Self { stage, model_config: model_config.clone(), model, optimizer: None, training: None }
+    }
+
+    /// Writes the checkpoint to `path` atomically.
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let io = |message: String| CheckpointError::Io { path: path.to_path_buf(), message };
+        let rename = |prefix: &str, bytes: &Bytes| -> Result<Vec<Entry>, String> {
+            Ok(entries(bytes)?
+                .into_iter()
+                .map(|e| Entry { name: format!("{prefix}{}", e.name), ..e })
+                .collect())
+        };
+        let mut tensors = rename(MODEL_PREFIX, &self.model).map_err(io)?;
+        if let Some(optimizer) = &self.optimizer {
+            tensors.extend(rename(OPTIMIZER_PREFIX, optimizer).map_err(io)?);
+        }
+        let tensors = tensors.into_iter().map(Entry::into_pack).collect();
+        let model_json = serde_json::to_string(&self.model_config).expect("configs serialize");
+        let mut writer = Writer::new(tensors)
+            .with_metadata("supersvg.format", FORMAT)
+            .with_metadata("supersvg.stage", self.stage.name())
+            .with_metadata("supersvg.model", &model_json)
+            .auto_extension(false);
+        if let Some(training) = &self.training {
+            writer = writer.with_metadata("supersvg.training", training);
+        }
+        writer.write_to_file(path).map_err(|err| io(err.to_string()))
+    }
+
+    /// Reads a checkpoint from `path`.
+    pub fn load(path: &Path) -> Result<Self, CheckpointError> {
+        let format = |message: String| CheckpointError::Format { path: path.to_path_buf(), message };
+        if !path.is_file() {
+            return Err(CheckpointError::Io { path: path.to_path_buf(), message: "no such file".into() });
+        }
+        let reader = Reader::from_file(path).map_err(|err| format(err.to_string()))?;
+        let metadata = reader.metadata().clone();
+        let get = |key: &str| metadata.get(key).cloned().ok_or_else(|| format(format!("missing `{key}`")));
+        if get("supersvg.format")? != FORMAT {
+            return Err(format(format!("unsupported format `{}`", get("supersvg.format")?)));
+        }
+        let stage = match get("supersvg.stage")?.as_str() {
+            "coarse" => Stage::Coarse,
+            "refine" => Stage::Refine,
+            other => return Err(format(format!("unknown stage `{other}`"))),
+        };
+        let model_config: ModelConfig = serde_json::from_str(&get("supersvg.model")?)
+            .map_err(|err| format(format!("model config: {err}")))?;
+        model_config.validate().map_err(format)?;
+        let tensors = reader.into_tensors().map_err(|err| format(err.to_string()))?;
+        let (model, optimizer) = split(tensors).map_err(format)?;
+        Ok(Self {
+            stage,
+            model_config,
+            model,
+            optimizer,
+            training: metadata.get("supersvg.training").cloned(),
+        })
+    }
+
+    /// Fails unless the checkpoint holds `stage`.
+    pub fn expect_stage(&self, stage: Stage, path: &Path) -> Result<(), CheckpointError> {
+        if self.stage == stage {
+            Ok(())
+        } else {
+            Err(CheckpointError::WrongStage {
+                path: path.to_path_buf(),
+                expected: stage.name(),
+                found: self.stage.name().to_string(),
+            })
+        }
+    }
+
+    /// Applies the stored weights to `model`, converting them to the model's dtype.
+    pub fn apply<M: Module>(&self, model: M, path: &Path) -> Result<M, CheckpointError> {
+        let mismatch = |message: String| CheckpointError::Mismatch { path: path.to_path_buf(), message };
+        let record = ModuleRecord::from_bytes(self.model.clone()).map_err(|err| mismatch(err.to_string()))?;
+        model.try_load_record(record.cast_to_module_dtype()).map_err(|err| mismatch(err.to_string()))
+    }
+}
+
+/// Loads a coarse model and its configuration from a checkpoint file.
+pub fn load_coarse(path: &Path, device: &Device) -> Result<(CoarseModel, ModelConfig), CheckpointError> {
+    let checkpoint = Checkpoint::load(path)?;
+    checkpoint.expect_stage(Stage::Coarse, path)?;
+    let model = checkpoint.apply(CoarseModel::new(&checkpoint.model_config, device), path)?;
+    Ok((model, checkpoint.model_config))
+}
+
+/// Loads a refinement model and its configuration from a checkpoint file.
+pub fn load_refine(path: &Path, device: &Device) -> Result<(RefineModel, ModelConfig), CheckpointError> {
+    let checkpoint = Checkpoint::load(path)?;
+    checkpoint.expect_stage(Stage::Refine, path)?;
+    let model = checkpoint.apply(RefineModel::new(&checkpoint.model_config, device), path)?;
+    Ok((model, checkpoint.model_config))
+}
+
+/// One tensor of a burnpack container.
+struct Entry {
+    name: String,
+    id: Option<u64>,
+    data: TensorData,
+}
+
+impl Entry {
+    fn from_pack(tensor: burn_pack::Tensor) -> Result<Self, String> {
+        let (name, dtype, shape, id, bytes) = tensor.into_parts().map_err(|err| err.to_string())?;
+        Ok(Self { name, id, data: TensorData::from_bytes(bytes, shape, dtype) })
+    }
+
+    fn into_pack(self) -> burn_pack::Tensor {
+        let (bytes, shape, dtype) = self.data.into_parts();
+        burn_pack::Tensor::new(self.name, dtype, shape, self.id, bytes)
+    }
+}
+
+/// The tensors of a burnpack buffer.
+fn entries(bytes: &Bytes) -> Result<Vec<Entry>, String> {
+    let tensors =
+        Reader::from_bytes(bytes.clone()).and_then(Reader::into_tensors).map_err(|err| err.to_string())?;
+    tensors.into_iter().map(Entry::from_pack).collect()
+}
+
+/// A burnpack buffer of `entries`.
+fn pack(entries: Vec<Entry>) -> Result<Bytes, String> {
+    Writer::new(entries.into_iter().map(Entry::into_pack).collect())
+        .into_bytes()
+        .map_err(|err| err.to_string())
+}
+
+/// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers.
+fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), String> {
+    let (mut model, mut optimizer) = (Vec::new(), Vec::new());
+    for tensor in tensors {
+        let entry = Entry::from_pack(tensor)?;
+        if let Some(rest) = entry.name.strip_prefix(MODEL_PREFIX) {
+            model.push(Entry { name: rest.to_string(), ..entry });
+        } else if let Some(rest) = entry.name.strip_prefix(OPTIMIZER_PREFIX) {
+            optimizer.push(Entry { name: rest.to_string(), ..entry });
+        } else {
+            return Err(format!("unexpected tensor `{}`", entry.name));
+        }
+    }
+    if model.is_empty() {
+        return Err("no model weights".into());
+    }
+    let optimizer = if optimizer.is_empty() { None } else { Some(pack(optimizer)?) };
+    Ok((pack(model)?, optimizer))
+}

@@ -1,0 +1,140 @@
+//! The size of both networks, with the paper's preset and a CPU-sized one.
+
+use serde::{Deserialize, Serialize};
+
+/// Named starting points for [`ModelConfig`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// The paper's scale: ViT-S/16 at 224 (embed 384, depth 12, 6 heads), 128 paths, queries of
+    /// width 128 with 8 heads. For a GPU.
+    Paper,
+    /// A small ViT (embed 192, depth 4, 3 heads, patch 8) at 64 px with 32 paths: trains at a
+    /// useful speed on two CPU cores and keeps both checkpoints small.
+    Cpu,
+}
+
+/// Architecture of E_c and E_r (they share the encoder and the decoder's shape).
+///
+/// Read from TOML with unknown keys rejected. Plain serde rather than `burn::Config`, whose
+/// derive cannot refuse unknown keys.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelConfig {
+    /// Side of the square input crop in pixels.
+    pub input_size: usize,
+    /// Side of a ViT patch; `input_size` must be a multiple of it.
+    pub patch_size: usize,
+    /// Width of the ViT tokens.
+    pub embed_dim: usize,
+    /// Number of ViT blocks.
+    pub depth: usize,
+    /// Attention heads in the ViT.
+    pub heads: usize,
+    /// Hidden width of every MLP relative to its input width.
+    pub mlp_ratio: usize,
+    /// Paths predicted by the coarse model E_c (n).
+    pub paths: usize,
+    /// Paths added per call of the refinement model E_r (m).
+    pub refine_paths: usize,
+    /// Width of the learnable path queries and the decoder.
+    pub query_dim: usize,
+    /// Attention heads in the decoder's cross- and self-attention.
+    pub query_heads: usize,
+    /// Hidden channels of E_r's fusion convolutions.
+    pub fusion_channels: usize,
+}
+
+impl ModelConfig {
+    /// The configuration a preset names.
+    pub fn preset(preset: Preset) -> Self {
+        match preset {
+            Preset::Paper => Self {
+                input_size: 224,
+                patch_size: 16,
+                embed_dim: 384,
+                depth: 12,
+                heads: 6,
+                mlp_ratio: 4,
+                paths: 128,
+                refine_paths: 8,
+                query_dim: 128,
+                query_heads: 8,
+                fusion_channels: 32,
+            },
+            Preset::Cpu => Self {
+                input_size: 64,
+                patch_size: 8,
+                embed_dim: 192,
+                depth: 4,
+                heads: 3,
+                mlp_ratio: 4,
+                paths: 32,
+                refine_paths: 8,
+                query_dim: 128,
+                query_heads: 4,
+                fusion_channels: 16,
+            },
+        }
+    }
+
+    /// Checks the sizes fit together; the message names the offending field.
+    pub fn validate(&self) -> Result<(), String> {
+        let positive = [
+            ("input_size", self.input_size),
+            ("patch_size", self.patch_size),
+            ("embed_dim", self.embed_dim),
+            ("depth", self.depth),
+            ("heads", self.heads),
+            ("mlp_ratio", self.mlp_ratio),
+            ("paths", self.paths),
+            ("refine_paths", self.refine_paths),
+            ("query_dim", self.query_dim),
+            ("query_heads", self.query_heads),
+            ("fusion_channels", self.fusion_channels),
+        ];
+        if let Some((name, _)) = positive.iter().find(|(_, value)| *value == 0) {
+            return Err(format!("model.{name} must be positive"));
+        }
+        if self.input_size % self.patch_size != 0 {
+            return Err(format!(
+                "model.input_size ({}) must be a multiple of model.patch_size ({})",
+                self.input_size, self.patch_size
+            ));
+        }
+        if self.embed_dim % self.heads != 0 {
+            return Err(format!(
+                "model.embed_dim ({}) must be divisible by model.heads ({})",
+                self.embed_dim, self.heads
+            ));
+        }
+        if self.query_dim % self.query_heads != 0 {
+            return Err(format!(
+                "model.query_dim ({}) must be divisible by model.query_heads ({})",
+                self.query_dim, self.query_heads
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of ViT tokens (patches), without the class token.
+    pub fn tokens(&self) -> usize {
+        (self.input_size / self.patch_size).pow(2)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_sizes_are_checked() {
+        for preset in [Preset::Paper, Preset::Cpu] {
+            ModelConfig::preset(preset).validate().unwrap();
+        }
+        let bad = ModelConfig { input_size: 60, ..ModelConfig::preset(Preset::Cpu) };
+        assert!(bad.validate().unwrap_err().contains("model.input_size"));
+        let bad = ModelConfig { query_heads: 0, ..ModelConfig::preset(Preset::Cpu) };
+        assert_eq!(bad.validate().unwrap_err(), "model.query_heads must be positive");
+    }
+}

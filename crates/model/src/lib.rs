@@ -1,0 +1,20 @@
+//! The two networks of SuperSVG as burn modules, sized by [`ModelConfig`]:
+//!
+//! - [`CoarseModel`] (E_c): a superpixel crop to n paths with visibility;
+//! - [`RefineModel`] (E_r): the crop and the current canvas to m more paths;
+//!
+//! and their [`Checkpoint`] files. Both return a [`raster::PathBatch`] in the crop's unit square.
+
+mod checkpoint;
+mod coarse;
+mod config;
+mod decoder;
+mod refine;
+mod vit;
+
+pub use checkpoint::{Checkpoint, CheckpointError, Stage, load_coarse, load_refine};
+pub use coarse::CoarseModel;
+pub use config::{ModelConfig, Preset};
+pub use decoder::PathDecoder;
+pub use refine::RefineModel;
+pub use vit::VitEncoder;

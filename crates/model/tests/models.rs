@@ -1,0 +1,204 @@
+//! E_c and E_r: shapes and ranges, inheritance, checkpoints, backends, trainability.
+
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::tensor::{DType, Device, Distribution, Tensor};
+use model::{
+    Checkpoint, CheckpointError, CoarseModel, ModelConfig, Preset, RefineModel, Stage, load_coarse,
+    load_refine,
+};
+use raster::{Backend, PathBatch, SoftRasterOptions, render_soft};
+
+/// The CPU preset shrunk further so the tests stay fast; same architecture.
+fn tiny() -> ModelConfig {
+    ModelConfig {
+        input_size: 32,
+        embed_dim: 48,
+        depth: 2,
+        heads: 2,
+        paths: 6,
+        query_dim: 32,
+        query_heads: 2,
+        ..ModelConfig::preset(Preset::Cpu)
+    }
+}
+
+fn crops(batch: usize, config: &ModelConfig, device: &Device) -> Tensor<4> {
+    let size = config.input_size;
+    Tensor::random([batch, 3, size, size], Distribution::Uniform(-1.0, 1.0), device)
+}
+
+fn values(paths: &PathBatch) -> Vec<f32> {
+    paths.params().try_to_vec_as().unwrap()
+}
+
+fn assert_in_unit_range(values: &[f32]) {
+    assert!(values.iter().all(|v| (0.0..=1.0).contains(v)), "values outside [0, 1]");
+}
+
+#[test]
+fn coarse_and_refine_shapes_and_ranges_for_both_presets() {
+    let device = Device::flex();
+    for config in [ModelConfig::preset(Preset::Cpu), ModelConfig::preset(Preset::Paper)] {
+        let coarse = CoarseModel::new(&config, &device);
+        let paths = coarse.forward(crops(1, &config, &device));
+        assert_eq!(paths.dims(), [1, config.paths]);
+        let all = values(&paths);
+        assert_in_unit_range(&all);
+        let alpha: Vec<f32> = paths.alpha().try_to_vec_as().unwrap();
+        assert!(alpha.iter().all(|&a| a == 0.0 || a == 1.0), "β is exactly 0 or 1");
+
+        let refine = RefineModel::new(&config, &device);
+        let added = refine.forward(crops(1, &config, &device), crops(1, &config, &device));
+        assert_eq!(added.dims(), [1, config.refine_paths]);
+        assert_in_unit_range(&values(&added));
+        let alpha: Vec<f32> = added.alpha().try_to_vec_as().unwrap();
+        assert!(alpha.iter().all(|&a| a == 1.0), "refinement paths are opaque");
+    }
+}
+
+#[test]
+fn visibility_has_the_surrogate_gradient_through_the_model() {
+    let device = Device::flex().autodiff();
+    let config = tiny();
+    let coarse = CoarseModel::new(&config, &device);
+    let paths = coarse.forward(crops(2, &config, &device));
+    let grads = paths.alpha().sum().backward();
+    let head_grad = GradientsParams::from_grads(grads, &coarse);
+    assert!(!head_grad.is_empty(), "the visible-path count reaches the weights");
+}
+
+#[test]
+fn inheritance_copies_the_encoder_exactly_and_nothing_else() {
+    let device = Device::flex();
+    let config = tiny();
+    let coarse = CoarseModel::new(&config, &device);
+    let fresh = RefineModel::new(&config, &device);
+    let inherited = fresh.clone().inherit_encoder(&coarse);
+    let bytes = |m: &dyn Fn() -> burn::store::ModuleRecord| m().into_bytes().unwrap().to_vec();
+    assert_eq!(
+        bytes(&|| inherited.encoder().clone().into_record()),
+        bytes(&|| coarse.encoder().clone().into_record()),
+        "encoder weights are copied bit for bit"
+    );
+    // The rest: same output as the fresh model once the fresh model gets the same encoder
+    // through a checkpoint round trip is a weaker statement; compare non-encoder tensors directly.
+    let without_encoder = |model: &RefineModel| {
+        let record = model.clone().into_record().into_bytes().unwrap();
+        let reader = burn_pack::Reader::from_bytes(record).unwrap();
+        let mut tensors: Vec<(String, Vec<u8>)> = reader
+            .into_tensors()
+            .unwrap()
+            .into_iter()
+            .filter(|t| !t.name.starts_with("encoder"))
+            .map(|t| (t.name.clone(), t.into_bytes().unwrap().to_vec()))
+            .collect();
+        tensors.sort();
+        tensors
+    };
+    assert_eq!(without_encoder(&inherited), without_encoder(&fresh));
+}
+
+#[test]
+fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
+    let device = Device::flex();
+    let config = tiny();
+    let dir = std::env::temp_dir().join(format!("supersvg-model-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = crops(2, &config, &device);
+
+    let coarse = CoarseModel::new(&config, &device);
+    let path = dir.join("coarse.ckpt");
+    Checkpoint::of_model(Stage::Coarse, &config, &coarse, DType::F32).save(&path).unwrap();
+    let (loaded, loaded_config) = load_coarse(&path, &device).unwrap();
+    assert_eq!(loaded_config, config);
+    assert_eq!(values(&loaded.forward(input.clone())), values(&coarse.forward(input.clone())));
+
+    // Half precision shrinks the file and keeps outputs close.
+    let half = dir.join("coarse-f16.ckpt");
+    Checkpoint::of_model(Stage::Coarse, &config, &coarse, DType::F16).save(&half).unwrap();
+    assert!(std::fs::metadata(&half).unwrap().len() * 10 < std::fs::metadata(&path).unwrap().len() * 6);
+    let (loaded_half, _) = load_coarse(&half, &device).unwrap();
+    let (a, b) = (values(&loaded_half.forward(input.clone())), values(&coarse.forward(input.clone())));
+    let coords_gap = a
+        .iter()
+        .zip(&b)
+        .enumerate()
+        .filter(|(i, _)| i % 28 < 27)
+        .map(|(_, (x, y))| (x - y).abs())
+        .fold(0.0, f32::max);
+    assert!(coords_gap < 0.01, "f16 weights moved outputs by {coords_gap}");
+
+    // Wrong stage, wrong shape, not a checkpoint, missing file.
+    let err = load_refine(&path, &device).unwrap_err();
+    assert!(matches!(err, CheckpointError::WrongStage { .. }), "{err}");
+    assert!(err.to_string().contains("coarse checkpoint"), "{err}");
+
+    let checkpoint = Checkpoint::load(&path).unwrap();
+    let bigger = ModelConfig { embed_dim: 64, ..config.clone() };
+    let err = checkpoint.apply(CoarseModel::new(&bigger, &device), &path).err().unwrap();
+    assert!(matches!(err, CheckpointError::Mismatch { .. }), "{err}");
+    assert!(err.to_string().contains("coarse.ckpt") && err.to_string().contains("48"), "{err}");
+
+    let junk = dir.join("junk.ckpt");
+    std::fs::write(&junk, b"not a checkpoint").unwrap();
+    let err = load_coarse(&junk, &device).err().unwrap();
+    assert!(matches!(err, CheckpointError::Format { .. }), "{err}");
+    let err = load_coarse(&dir.join("missing.ckpt"), &device).err().unwrap();
+    assert!(err.to_string().contains("missing.ckpt"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn backends_agree_on_outputs() {
+    let config = tiny();
+    let flex = Device::flex();
+    let coarse = CoarseModel::new(&config, &flex);
+    let refine = RefineModel::new(&config, &flex);
+    let input: Vec<f32> = crops(1, &config, &flex).try_to_vec_as().unwrap();
+    let run = |device: &Device| {
+        let coarse = CoarseModel::new(&config, device).load_record(coarse.clone().into_record());
+        let refine = RefineModel::new(&config, device).load_record(refine.clone().into_record());
+        let size = config.input_size;
+        let x = Tensor::<1>::from_floats(input.as_slice(), device).reshape([1, 3, size, size]);
+        let mut out = values(&coarse.forward(x.clone()));
+        out.extend(values(&refine.forward(x.clone(), x)));
+        out
+    };
+    let reference = run(&flex);
+    for backend in [Backend::Ndarray, Backend::Wgpu].into_iter().filter(|b| b.is_compiled()) {
+        let other = run(&backend.device().unwrap());
+        let gap = reference.iter().zip(&other).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        assert!(gap <= 1e-4, "{backend}: outputs differ by {gap}");
+    }
+}
+
+#[test]
+fn a_gradient_step_reduces_the_reconstruction_loss() {
+    let device = Device::flex().autodiff();
+    let config = tiny();
+    let mut coarse = CoarseModel::new(&config, &device);
+    // A two-colour target: learnable in a few steps, unlike noise.
+    let size = config.input_size;
+    let half = |value: f32| Tensor::<4>::full([2, 3, size, size / 2], value, &device);
+    let target = Tensor::cat(vec![half(0.9), half(0.2)], 3);
+    let input = target.clone();
+    let mask = Tensor::<4>::ones([2, 1, size, size], &device);
+    let loss_of = |model: &CoarseModel| {
+        let paths = model.forward(input.clone());
+        let opaque = paths.with_alpha(Tensor::ones([1, 1, 1], &device));
+        let render =
+            render_soft(&opaque, size, size, &SoftRasterOptions::default().with_background([0.5; 3]));
+        dpw::masked_l2(render, target.clone(), mask.clone())
+    };
+    let mut optimizer = AdamConfig::new().init();
+    let before = loss_of(&coarse);
+    let before_value: f32 = before.clone().into_scalar();
+    for _ in 0..5 {
+        let loss = loss_of(&coarse);
+        let grads = GradientsParams::from_grads(loss.backward(), &coarse);
+        coarse = optimizer.step(1e-3, coarse, grads);
+    }
+    let after: f32 = loss_of(&coarse).into_scalar();
+    assert!(after < before_value * 0.98, "loss {before_value} → {after}");
+}
