@@ -7,5 +7,6 @@
 //! - [`dpw`]: the training objectives (normalized L2, boundary, path efficiency, DPW);
 //! - [`superpixel`]: SLIC, region crops and paste-back;
 //! - [`model`]: the coarse and refinement networks and their checkpoints;
+//! - [`train`]: `train-coarse` and `train-refine`.
 
-pub use {dpw, model, raster, superpixel};
+pub use {dpw, model, raster, superpixel, train};

@@ -1,0 +1,40 @@
+//! `train-coarse`: trains the coarse model E_c.
+//!
+//! `train-coarse --config configs/coarse.toml [--out DIR] [--backend flex|ndarray|wgpu] [--steps N] [--resume]`
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use model::CoarseModel;
+use train::cli::{CommonArgs, finish};
+use train::config::{self, CoarseConfig};
+use train::objective::CoarseObjective;
+use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
+
+/// Train the coarse model E_c of SuperSVG.
+#[derive(Parser, Debug)]
+#[command(name = "train-coarse", version)]
+struct Args {
+    #[command(flatten)]
+    common: CommonArgs,
+}
+
+fn main() -> ExitCode {
+    finish(run(Args::parse().common))
+}
+
+fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::Error>> {
+    let mut config: CoarseConfig = config::load(&args.config)?;
+    if let Some(steps) = args.steps {
+        config.train.steps = steps;
+    }
+    let dir = args.out.unwrap_or_else(|| "runs/coarse".into());
+    let device = args.backend.autodiff_device()?;
+    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let resume = if args.resume { Some(resume_from::<CoarseObjective>(&dir)?) } else { None };
+    let path = checkpoint_path::<CoarseObjective>(&dir);
+    let start = model_from(|c| CoarseModel::new(c, &device), &config.model.0, resume, &path)?;
+    let config_json = serde_json::to_value(&config)?;
+    let run = Run { dir, device };
+    Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)
+}

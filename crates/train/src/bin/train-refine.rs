@@ -1,0 +1,53 @@
+//! `train-refine`: trains the refinement model E_r, guided by a trained coarse model.
+//!
+//! `train-refine --config configs/refine.toml --init DIR/coarse.ckpt [--out DIR] [--backend …] [--steps N] [--resume]`
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use burn::module::Module;
+use clap::Parser;
+use model::{RefineModel, load_coarse};
+use train::cli::{CommonArgs, finish};
+use train::config::{self, RefineConfig};
+use train::objective::RefineObjective;
+use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
+
+/// Train the refinement model E_r of SuperSVG from a trained coarse model.
+#[derive(Parser, Debug)]
+#[command(name = "train-refine", version)]
+struct Args {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// The trained coarse checkpoint: the frozen teacher, and E_r's initial encoder.
+    #[arg(long)]
+    init: PathBuf,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    finish(run(args.common, args.init))
+}
+
+fn run(args: CommonArgs, init: PathBuf) -> Result<train::trainer::Summary, Box<dyn std::error::Error>> {
+    let mut config: RefineConfig = config::load(&args.config)?;
+    if let Some(steps) = args.steps {
+        config.train.steps = steps;
+    }
+    let dir = args.out.unwrap_or_else(|| "runs/refine".into());
+    let device = args.backend.autodiff_device()?;
+    let (teacher, model_config) = load_coarse(&init, &device)?;
+    let resume = if args.resume { Some(resume_from::<RefineObjective>(&dir)?) } else { None };
+    let path = checkpoint_path::<RefineObjective>(&dir);
+    let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
+    let start = model_from(fresh, &model_config, resume, &path)?;
+    let objective = RefineObjective {
+        teacher: teacher.freeze(),
+        loss: config.loss.clone(),
+        raster: config.raster.options(),
+        seed: config.train.seed,
+    };
+    let config_json = serde_json::to_value(&config)?;
+    let run = Run { dir, device };
+    Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)
+}

@@ -1,0 +1,454 @@
+//! Training configuration files (TOML): unknown keys and bad values are rejected by name.
+
+use std::path::{Path, PathBuf};
+
+use model::{ModelConfig, Preset};
+use raster::SoftRasterOptions;
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// Everything `train-coarse` reads from its config file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoarseConfig {
+    /// Architecture: `preset = "cpu" | "paper"` plus any field of [`ModelConfig`] to override.
+    #[serde(default)]
+    pub model: ModelSection,
+    /// Where samples come from.
+    pub data: DataConfig,
+    /// Optimizer, schedule, checkpoints.
+    pub train: OptimConfig,
+    /// Loss weights.
+    #[serde(default)]
+    pub loss: CoarseLoss,
+    /// Soft rasterizer used in the losses.
+    #[serde(default)]
+    pub raster: RasterConfig,
+}
+
+/// Everything `train-refine` reads from its config file. The architecture comes from the coarse
+/// checkpoint it starts from.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefineConfig {
+    /// Where samples come from.
+    pub data: DataConfig,
+    /// Optimizer, schedule, checkpoints.
+    pub train: OptimConfig,
+    /// Loss weights and the guidance by the coarse paths.
+    #[serde(default)]
+    pub loss: RefineLoss,
+    /// Soft rasterizer used in the losses.
+    #[serde(default)]
+    pub raster: RasterConfig,
+}
+
+/// The `[model]` table: a preset and overrides, resolved into a validated [`ModelConfig`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct ModelSection(pub ModelConfig);
+
+impl Default for ModelSection {
+    fn default() -> Self {
+        Self(ModelConfig::preset(Preset::Cpu))
+    }
+}
+
+impl<'de> Deserialize<'de> for ModelSection {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let mut table = toml::Table::deserialize(deserializer)?;
+        let preset = match table.remove("preset") {
+            None => Preset::Cpu,
+            Some(value) => {
+                Preset::deserialize(value).map_err(|err| D::Error::custom(format!("model.preset: {err}")))?
+            }
+        };
+        let mut merged = toml::Table::try_from(ModelConfig::preset(preset)).map_err(D::Error::custom)?;
+        merged.extend(table);
+        let config =
+            ModelConfig::deserialize(merged).map_err(|err| D::Error::custom(format!("model: {err}")))?;
+        config.validate().map_err(D::Error::custom)?;
+        Ok(Self(config))
+    }
+}
+
+/// The `[data]` table.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DataConfig {
+    /// A folder of training images (searched recursively), relative to the working directory.
+    pub images: Option<PathBuf>,
+    /// Use the built-in generator of random vector scenes.
+    pub synthetic: bool,
+    /// Fraction of samples drawn from the generator when both sources are on.
+    pub synthetic_weight: f32,
+    /// Range (inclusive) of SLIC region counts drawn per sample.
+    pub segments: [usize; 2],
+    /// SLIC compactness (the method uses 30).
+    pub compactness: f32,
+    /// Images are scaled to this long side before SLIC (and generated scenes made this big).
+    pub image_size: u32,
+    /// Pixels added around a region's bounding box before cropping.
+    pub crop_padding: u32,
+    /// Threads preparing batches.
+    pub workers: usize,
+    /// Batches prepared ahead of the model.
+    pub prefetch: usize,
+}
+
+impl Default for DataConfig {
+    fn default() -> Self {
+        Self {
+            images: None,
+            synthetic: true,
+            synthetic_weight: 0.5,
+            segments: [8, 48],
+            compactness: 30.0,
+            image_size: 256,
+            crop_padding: 2,
+            workers: 1,
+            prefetch: 4,
+        }
+    }
+}
+
+/// The `[train]` table: AdamW with linear warm-up and cosine decay, and bookkeeping.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OptimConfig {
+    /// Seed of the initialization, the data order and every random choice.
+    pub seed: u64,
+    /// Total optimizer steps.
+    pub steps: usize,
+    /// Samples per step.
+    pub batch_size: usize,
+    /// Peak learning rate.
+    pub lr: f64,
+    /// Learning rate at the end of the cosine decay.
+    pub min_lr: f64,
+    /// Steps of linear warm-up from 0 to `lr`.
+    pub warmup_steps: usize,
+    /// AdamW weight decay (not applied to norms and biases).
+    pub weight_decay: f32,
+    /// AdamW β1, β2.
+    pub betas: [f32; 2],
+    /// Clip the gradient's global norm to this value; 0 disables clipping.
+    pub grad_clip: f32,
+    /// Steps between checkpoints (one is always written at the end).
+    pub checkpoint_every: usize,
+    /// Steps between lines of `metrics.jsonl`.
+    pub log_every: usize,
+    /// Steps between preview images; 0 disables them.
+    pub preview_every: usize,
+}
+
+impl Default for OptimConfig {
+    fn default() -> Self {
+        Self {
+            seed: 0,
+            steps: 10_000,
+            batch_size: 16,
+            lr: 5e-4,
+            min_lr: 1e-5,
+            warmup_steps: 500,
+            weight_decay: 0.05,
+            betas: [0.9, 0.95],
+            grad_clip: 1.0,
+            checkpoint_every: 500,
+            log_every: 10,
+            preview_every: 500,
+        }
+    }
+}
+
+/// How λ_bound changes: from `start`, minus `decay_per_epoch` every `epoch_steps`, down to `end`
+/// (the reference: 0.045 → 0.01 by 0.005 per epoch).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BoundaryWeight {
+    /// λ_bound at step 0.
+    pub start: f32,
+    /// Lowest λ_bound.
+    pub end: f32,
+    /// Decrease per epoch.
+    pub decay_per_epoch: f32,
+    /// Steps that count as an epoch (the data stream is endless).
+    pub epoch_steps: usize,
+    /// Dilation of the mask in pixels.
+    pub dilation: usize,
+}
+
+impl Default for BoundaryWeight {
+    fn default() -> Self {
+        Self { start: 0.045, end: 0.01, decay_per_epoch: 0.005, epoch_steps: 1000, dilation: 2 }
+    }
+}
+
+impl BoundaryWeight {
+    /// λ_bound at `step`.
+    pub fn at(&self, step: usize) -> f32 {
+        let epochs = (step / self.epoch_steps.max(1)) as f32;
+        (self.start - epochs * self.decay_per_epoch).max(self.end)
+    }
+}
+
+/// The `[loss]` table of the coarse stage.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CoarseLoss {
+    /// Scales of the normalized L2 (1 = full resolution only; more widen the basin).
+    pub l2_levels: usize,
+    /// λ_PE on the number of visible paths (a sum over paths).
+    pub path_efficiency: f32,
+    /// λ_bound and its schedule.
+    pub boundary: BoundaryWeight,
+}
+
+impl Default for CoarseLoss {
+    fn default() -> Self {
+        Self { l2_levels: 3, path_efficiency: 1e-5, boundary: BoundaryWeight::default() }
+    }
+}
+
+/// How the refinement model's paths are tied to the coarse model's leftover paths.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Guidance {
+    /// Dynamic Path Warping (the method).
+    Dpw,
+    /// Plain L2 in parameter space against the next m coarse paths, one to one (ablation).
+    L2,
+    /// No guidance, reconstruction only (ablation).
+    None,
+}
+
+/// The `[loss]` table of the refinement stage.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RefineLoss {
+    /// Scales of the normalized L2.
+    pub l2_levels: usize,
+    /// Which guidance term is used.
+    pub guidance: Guidance,
+    /// λ of the guidance term at step 0; it decays linearly to 0.
+    pub guidance_start: f32,
+    /// Steps over which λ decays to 0 (the paper: 10 K).
+    pub guidance_decay_steps: usize,
+    /// Soft-min temperature γ of DPW (0.01 in the reference).
+    pub gamma: f32,
+    /// Weight of coordinates in the path distance.
+    pub distance_coords: f32,
+    /// Weight of colours in the path distance.
+    pub distance_color: f32,
+    /// λ_bound and its schedule.
+    pub boundary: BoundaryWeight,
+}
+
+impl Default for RefineLoss {
+    fn default() -> Self {
+        Self {
+            l2_levels: 3,
+            guidance: Guidance::Dpw,
+            guidance_start: 1e-3,
+            guidance_decay_steps: 10_000,
+            gamma: 0.01,
+            distance_coords: 1.0,
+            distance_color: 1.0,
+            boundary: BoundaryWeight::default(),
+        }
+    }
+}
+
+impl RefineLoss {
+    /// λ of the guidance term at `step`.
+    pub fn guidance_at(&self, step: usize) -> f32 {
+        let remaining = 1.0 - step as f32 / self.guidance_decay_steps.max(1) as f32;
+        self.guidance_start * remaining.max(0.0)
+    }
+}
+
+/// The `[raster]` table: the soft rasterizer of the losses.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RasterConfig {
+    /// Straight edges per cubic segment.
+    pub segments_per_curve: usize,
+    /// Bands per pixel row.
+    pub subrows: usize,
+    /// Colour under the paths in training renders.
+    pub background: [f32; 3],
+}
+
+impl Default for RasterConfig {
+    fn default() -> Self {
+        let soft = SoftRasterOptions::default();
+        Self {
+            segments_per_curve: soft.segments_per_curve,
+            subrows: soft.subrows,
+            background: soft.background,
+        }
+    }
+}
+
+impl RasterConfig {
+    /// The rasterizer options these settings describe.
+    pub fn options(&self) -> SoftRasterOptions {
+        SoftRasterOptions {
+            segments_per_curve: self.segments_per_curve,
+            subrows: self.subrows,
+            background: self.background,
+        }
+    }
+}
+
+/// A config file that could not be used; the message names the file and the key.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ConfigError {
+    /// The config file.
+    pub path: PathBuf,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// Reads and validates a config file.
+pub fn load<T: for<'de> Deserialize<'de> + Validate>(path: &Path) -> Result<T, ConfigError> {
+    let error = |message: String| ConfigError { path: path.to_path_buf(), message };
+    let text = std::fs::read_to_string(path).map_err(|err| error(err.to_string()))?;
+    let config: T = toml::from_str(&text).map_err(|err| error(err.to_string()))?;
+    config.validate().map_err(error)?;
+    Ok(config)
+}
+
+/// Checks of values that parse but make no sense; messages name the key.
+pub trait Validate {
+    /// `Err("table.key …")` for the first bad value.
+    fn validate(&self) -> Result<(), String>;
+}
+
+impl Validate for CoarseConfig {
+    fn validate(&self) -> Result<(), String> {
+        self.data.validate()?;
+        self.train.validate()?;
+        self.raster.validate()?;
+        check(self.loss.l2_levels >= 1, "loss.l2_levels must be at least 1")?;
+        check(self.loss.path_efficiency >= 0.0, "loss.path_efficiency must not be negative")?;
+        self.loss.boundary.validate()
+    }
+}
+
+impl Validate for RefineConfig {
+    fn validate(&self) -> Result<(), String> {
+        self.data.validate()?;
+        self.train.validate()?;
+        self.raster.validate()?;
+        check(self.loss.l2_levels >= 1, "loss.l2_levels must be at least 1")?;
+        check(self.loss.guidance_start >= 0.0, "loss.guidance_start must not be negative")?;
+        check(self.loss.gamma >= 0.0 && self.loss.gamma.is_finite(), "loss.gamma must be zero or positive")?;
+        check(self.loss.distance_coords >= 0.0, "loss.distance_coords must not be negative")?;
+        check(self.loss.distance_color >= 0.0, "loss.distance_color must not be negative")?;
+        self.loss.boundary.validate()
+    }
+}
+
+impl DataConfig {
+    fn validate(&self) -> Result<(), String> {
+        check(
+            self.images.is_some() || self.synthetic,
+            "data: set data.images, data.synthetic = true, or both",
+        )?;
+        check((0.0..=1.0).contains(&self.synthetic_weight), "data.synthetic_weight must be within [0, 1]")?;
+        check(
+            self.segments[0] >= 1 && self.segments[0] <= self.segments[1],
+            "data.segments must be [low, high] with 1 ≤ low ≤ high",
+        )?;
+        check(self.compactness > 0.0, "data.compactness must be positive")?;
+        check(self.image_size >= 16, "data.image_size must be at least 16")?;
+        check(self.workers >= 1, "data.workers must be at least 1")?;
+        check(self.prefetch >= 1, "data.prefetch must be at least 1")
+    }
+}
+
+impl OptimConfig {
+    fn validate(&self) -> Result<(), String> {
+        check(self.steps >= 1, "train.steps must be positive")?;
+        check(self.batch_size >= 1, "train.batch_size must be positive")?;
+        check(self.lr > 0.0 && self.lr.is_finite(), "train.lr must be positive")?;
+        check(self.min_lr >= 0.0 && self.min_lr <= self.lr, "train.min_lr must be within [0, train.lr]")?;
+        check(self.weight_decay >= 0.0, "train.weight_decay must not be negative")?;
+        check(self.betas.iter().all(|b| (0.0..1.0).contains(b)), "train.betas must be within [0, 1)")?;
+        check(self.grad_clip >= 0.0, "train.grad_clip must not be negative")?;
+        check(self.checkpoint_every >= 1, "train.checkpoint_every must be positive")?;
+        check(self.log_every >= 1, "train.log_every must be positive")
+    }
+}
+
+impl RasterConfig {
+    fn validate(&self) -> Result<(), String> {
+        check(self.segments_per_curve >= 1, "raster.segments_per_curve must be positive")?;
+        check(self.subrows >= 1, "raster.subrows must be positive")?;
+        check(
+            self.background.iter().all(|c| (0.0..=1.0).contains(c)),
+            "raster.background must be RGB within [0, 1]",
+        )
+    }
+}
+
+impl BoundaryWeight {
+    fn validate(&self) -> Result<(), String> {
+        check(self.start >= 0.0 && self.end >= 0.0, "loss.boundary.start and end must not be negative")?;
+        check(self.decay_per_epoch >= 0.0, "loss.boundary.decay_per_epoch must not be negative")?;
+        check(self.epoch_steps >= 1, "loss.boundary.epoch_steps must be positive")
+    }
+}
+
+fn check(ok: bool, message: &str) -> Result<(), String> {
+    if ok { Ok(()) } else { Err(message.to_string()) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse<T: for<'de> Deserialize<'de> + Validate>(text: &str) -> Result<T, String> {
+        let config: T = toml::from_str(text).map_err(|err| err.to_string())?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    #[test]
+    fn preset_with_overrides() {
+        let config: CoarseConfig =
+            parse("[model]\npreset = \"paper\"\npaths = 64\n[data]\n[train]\n").unwrap();
+        assert_eq!(config.model.0.paths, 64);
+        assert_eq!(config.model.0.embed_dim, 384);
+        let config: CoarseConfig = parse("[data]\n[train]\n").unwrap();
+        assert_eq!(config.model.0, ModelConfig::preset(Preset::Cpu));
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_are_named() {
+        let err = parse::<CoarseConfig>("[model]\nembed = 3\n[data]\n[train]\n").unwrap_err();
+        assert!(err.contains("embed"), "{err}");
+        let err = parse::<CoarseConfig>("[data]\nimagez = \"x\"\n[train]\n").unwrap_err();
+        assert!(err.contains("imagez"), "{err}");
+        let err = parse::<CoarseConfig>("[data]\n[train]\nbatch_size = 0\n").unwrap_err();
+        assert_eq!(err, "train.batch_size must be positive");
+        let err = parse::<RefineConfig>("[data]\n[train]\n[loss]\nguidance = \"dtw\"\n").unwrap_err();
+        assert!(err.contains("dtw"), "{err}");
+        let err = parse::<CoarseConfig>("[model]\npatch_size = 7\n[data]\n[train]\n").unwrap_err();
+        assert!(err.contains("model.input_size"), "{err}");
+    }
+
+    #[test]
+    fn schedules() {
+        let boundary = BoundaryWeight::default();
+        assert_eq!(boundary.at(0), 0.045);
+        assert!((boundary.at(2500) - 0.035).abs() < 1e-6);
+        assert_eq!(boundary.at(1_000_000), 0.01);
+        let loss = RefineLoss { guidance_start: 1e-3, guidance_decay_steps: 100, ..Default::default() };
+        assert_eq!(loss.guidance_at(0), 1e-3);
+        assert!((loss.guidance_at(50) - 5e-4).abs() < 1e-9);
+        assert_eq!(loss.guidance_at(200), 0.0);
+    }
+}

@@ -1,0 +1,212 @@
+//! The losses of the two training stages.
+
+use burn::module::Module;
+use burn::tensor::{Device, Tensor, TensorData};
+use dpw::{BoundaryOptions, PathDistance, boundary_loss, dpw, multiscale_masked_l2, path_efficiency_loss};
+use model::{CoarseModel, RefineModel, Stage};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use raster::{PathBatch, SoftRasterOptions, paint_soft, render_soft};
+
+use crate::config::{CoarseLoss, Guidance, RefineLoss};
+
+/// What one step computed: the total to minimize, the terms to report, and what to preview.
+pub struct StepOutput {
+    /// The weighted sum of the terms.
+    pub total: Tensor<1>,
+    /// Each term before weighting, and each weight, by name (for logs and NaN reports).
+    pub terms: Vec<(&'static str, Tensor<1>)>,
+    /// The weights the terms were given at this step.
+    pub weights: Vec<(&'static str, f32)>,
+    /// The soft render the reconstruction loss compared with the target, `[B, 3, S, S]`.
+    pub render: Tensor<4>,
+    /// Every path drawn in that render, in painter's order.
+    pub paths: PathBatch,
+}
+
+/// A training stage: its network and its objective.
+pub trait Objective {
+    /// The network trained.
+    type Model: Module;
+    /// Which checkpoint stage it writes.
+    const STAGE: Stage;
+    /// Losses of `model` on crops `[B, 3, S, S]` with masks `[B, 1, S, S]` at `step`.
+    fn step(&self, model: &Self::Model, pixels: Tensor<4>, masks: Tensor<4>, step: usize) -> StepOutput;
+    /// The colour under the paths in renders.
+    fn background(&self) -> [f32; 3];
+}
+
+/// The coarse objective: `L2 + λ_bound·L_bound + λ_PE·L_PE`.
+pub struct CoarseObjective {
+    /// Loss weights and schedules.
+    pub loss: CoarseLoss,
+    /// The soft rasterizer.
+    pub raster: SoftRasterOptions,
+}
+
+impl Objective for CoarseObjective {
+    type Model = CoarseModel;
+    const STAGE: Stage = Stage::Coarse;
+
+    fn background(&self) -> [f32; 3] {
+        self.raster.background
+    }
+
+    fn step(&self, model: &CoarseModel, pixels: Tensor<4>, masks: Tensor<4>, step: usize) -> StepOutput {
+        let [_, _, size, _] = pixels.dims();
+        let paths = model.forward(pixels.clone());
+        let render = render_soft(&paths, size, size, &self.raster);
+        let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
+        let boundary = BoundaryOptions { dilation: self.loss.boundary.dilation, raster: self.raster.clone() };
+        let bound = boundary_loss(&paths, masks, &boundary);
+        let efficiency = path_efficiency_loss(paths.alpha());
+        let (bound_weight, efficiency_weight) = (self.loss.boundary.at(step), self.loss.path_efficiency);
+        let total = l2.clone() + bound.clone() * bound_weight + efficiency.clone() * efficiency_weight;
+        StepOutput {
+            total,
+            terms: vec![("l2", l2), ("bound", bound), ("visible_paths", efficiency)],
+            weights: vec![("lambda_bound", bound_weight), ("lambda_pe", efficiency_weight)],
+            render,
+            paths,
+        }
+    }
+}
+
+/// The coarse-paths-guided refinement objective:
+/// `L2(x, R([S₁, S'])) + λ_guide·G(S₂, S') + λ_bound·L_bound(S')`.
+///
+/// The frozen coarse model predicts S; its visible paths are split at a random k (leaving at
+/// least m after the split when there are that many); S₁ = the first k is rendered as the canvas,
+/// E_r adds S' over it, and the guidance G ties S' to S₂ = the visible paths after the split.
+pub struct RefineObjective {
+    /// The trained coarse model (frozen).
+    pub teacher: CoarseModel,
+    /// Loss weights, schedules and guidance.
+    pub loss: RefineLoss,
+    /// The soft rasterizer.
+    pub raster: SoftRasterOptions,
+    /// Seed of the split points.
+    pub seed: u64,
+}
+
+impl Objective for RefineObjective {
+    type Model = RefineModel;
+    const STAGE: Stage = Stage::Refine;
+
+    fn background(&self) -> [f32; 3] {
+        self.raster.background
+    }
+
+    fn step(&self, model: &RefineModel, pixels: Tensor<4>, masks: Tensor<4>, step: usize) -> StepOutput {
+        let [_, _, size, _] = pixels.dims();
+        let device = pixels.device();
+        let coarse = self.teacher.forward(pixels.clone()).detach();
+        let [batch, count] = coarse.dims();
+        let split = Split::draw(&coarse, model.refine_paths(), self.seed, step);
+
+        let first = coarse.with_alpha(split.first_part(&device));
+        let canvas = render_soft(&first, size, size, &self.raster).detach();
+        let added = model.forward(pixels.clone(), canvas.clone());
+        let render = paint_soft(canvas, &added, &self.raster);
+        let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
+        let boundary = BoundaryOptions { dilation: self.loss.boundary.dilation, raster: self.raster.clone() };
+        let bound = boundary_loss(&added, masks, &boundary);
+
+        let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
+        let distances = distance.between(&added, &coarse); // [B, m, n]
+        let guidance = match self.loss.guidance {
+            Guidance::Dpw => {
+                let m = model.refine_paths();
+                let allowed =
+                    split.second_part(&device).reshape([batch, 1, count]).bool().expand([batch, m, count]);
+                let masked = distances.mask_fill(allowed.bool_not(), f32::INFINITY);
+                dpw(masked, self.loss.gamma).mean()
+            }
+            Guidance::L2 => {
+                let pairs = split.in_order_pairs(model.refine_paths(), &device);
+                (distances * pairs.clone()).sum() / pairs.sum().clamp_min(1.0)
+            }
+            Guidance::None => Tensor::zeros([1], &device),
+        };
+        let (guidance_weight, bound_weight) = (self.loss.guidance_at(step), self.loss.boundary.at(step));
+        let total = l2.clone() + guidance.clone() * guidance_weight + bound.clone() * bound_weight;
+        StepOutput {
+            total,
+            terms: vec![("l2", l2), ("guidance", guidance), ("bound", bound)],
+            weights: vec![("lambda_guidance", guidance_weight), ("lambda_bound", bound_weight)],
+            render,
+            paths: first.then(&added),
+        }
+    }
+}
+
+/// Where each sample's visible coarse paths are split into S₁ (canvas) and S₂ (guidance).
+struct Split {
+    /// `[B][n]`: whether the path is visible.
+    visible: Vec<Vec<bool>>,
+    /// `[B]`: how many visible paths go to the canvas.
+    k: Vec<usize>,
+}
+
+impl Split {
+    /// Draws k for every sample, uniformly among the splits that leave at least `m` visible
+    /// paths after the split (k = 0 when there are fewer than m).
+    fn draw(coarse: &PathBatch, m: usize, seed: u64, step: usize) -> Self {
+        let [batch, count] = coarse.dims();
+        let alpha: Vec<f32> = coarse.alpha().try_to_vec_as().expect("visibility is readable");
+        // A seed of its own, so splits are not correlated with the data stream of the same step.
+        let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        rng.set_stream(step as u64);
+        let visible: Vec<Vec<bool>> = alpha
+            .chunks(count.max(1))
+            .take(batch)
+            .map(|row| row.iter().map(|&a| a > 0.5).collect())
+            .collect();
+        let k = visible
+            .iter()
+            .map(|row| {
+                let shown = row.iter().filter(|&&v| v).count();
+                rng.random_range(0..=shown.saturating_sub(m))
+            })
+            .collect();
+        Self { visible, k }
+    }
+
+    /// `[B, n, 1]`: 1 for the first k visible paths of each sample.
+    fn first_part(&self, device: &Device) -> Tensor<3> {
+        self.indicator(device, |rank, k| rank < k)
+    }
+
+    /// `[B, n]` flattened as `[B, n, 1]`: 1 for the visible paths after the split.
+    fn second_part(&self, device: &Device) -> Tensor<3> {
+        self.indicator(device, |rank, k| rank >= k)
+    }
+
+    /// `[B, m, n]`: 1 where prediction i faces the i-th visible path after the split.
+    fn in_order_pairs(&self, m: usize, device: &Device) -> Tensor<3> {
+        let (batch, count) = (self.visible.len(), self.visible.first().map_or(0, Vec::len));
+        let mut pairs = vec![0.0f32; batch * m * count];
+        for (b, row) in self.visible.iter().enumerate() {
+            let after: Vec<usize> =
+                row.iter().enumerate().filter(|(_, v)| **v).map(|(j, _)| j).skip(self.k[b]).collect();
+            for (i, &j) in after.iter().take(m).enumerate() {
+                pairs[(b * m + i) * count + j] = 1.0;
+            }
+        }
+        Tensor::from_data(TensorData::new(pairs, [batch, m, count]), device)
+    }
+
+    /// `[B, n, 1]` indicator of visible paths whose rank among the visible ones satisfies `keep`.
+    fn indicator(&self, device: &Device, keep: impl Fn(usize, usize) -> bool) -> Tensor<3> {
+        let (batch, count) = (self.visible.len(), self.visible.first().map_or(0, Vec::len));
+        let mut values = Vec::with_capacity(batch * count);
+        for (b, row) in self.visible.iter().enumerate() {
+            let mut rank = 0;
+            for &visible in row {
+                values.push(if visible && keep(rank, self.k[b]) { 1.0 } else { 0.0 });
+                rank += usize::from(visible);
+            }
+        }
+        Tensor::from_data(TensorData::new(values, [batch, count, 1]), device)
+    }
+}

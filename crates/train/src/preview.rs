@@ -1,0 +1,75 @@
+//! Preview images: what the model sees and draws, side by side.
+
+use std::path::Path;
+
+use image::{Rgb, RgbImage};
+use raster::{PathBatch, render_exact, skia_outline};
+use tiny_skia::{Paint, Pixmap, Stroke, Transform};
+
+/// Writes a PNG grid, one row per sample (up to `rows`): target crop (grey outside the mask) |
+/// soft render | exact render of the paths | exact render with the path outlines.
+pub fn write_preview(
+    path: &Path,
+    pixels: &[f32],
+    masks: &[f32],
+    render: &[f32],
+    paths: &PathBatch,
+    background: [f32; 3],
+    rows: usize,
+) -> image::ImageResult<()> {
+    let scenes = paths.to_scenes();
+    let size = (masks.len() / scenes.len().max(1)).isqrt();
+    let rows = rows.min(scenes.len());
+    let tile = size as u32 * 2;
+    let mut grid = RgbImage::from_pixel(4 * tile + 5, rows as u32 * (tile + 1) + 1, Rgb([40, 40, 40]));
+    for (row, scene) in scenes.iter().take(rows).enumerate() {
+        let planar = |data: &[f32], x: usize, y: usize, c: usize| data[((row * 3 + c) * size + y) * size + x];
+        let target = RgbImage::from_fn(size as u32, size as u32, |x, y| {
+            let inside = masks[(row * size + y as usize) * size + x as usize] > 0.5;
+            Rgb(std::array::from_fn(|c| {
+                if inside { to_u8(planar(pixels, x as usize, y as usize, c)) } else { 128 }
+            }))
+        });
+        let soft = RgbImage::from_fn(size as u32, size as u32, |x, y| {
+            Rgb(std::array::from_fn(|c| to_u8(planar(render, x as usize, y as usize, c))))
+        });
+        let exact = render_exact(scene, tile, tile, background);
+        let outlined = with_outlines(&exact, scene);
+        let top = row as u32 * (tile + 1) + 1;
+        let upscale = |image: &RgbImage| {
+            image::imageops::resize(image, tile, tile, image::imageops::FilterType::Nearest)
+        };
+        for (column, image) in [upscale(&target), upscale(&soft), exact, outlined].iter().enumerate() {
+            image::imageops::replace(&mut grid, image, (column as u32 * (tile + 1) + 1).into(), top.into());
+        }
+    }
+    let temporary = path.with_extension("png.tmp");
+    grid.save_with_format(&temporary, image::ImageFormat::Png)?;
+    std::fs::rename(&temporary, path).map_err(image::ImageError::IoError)
+}
+
+fn to_u8(value: f32) -> u8 {
+    (value.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// `image` with a thin dark outline around every visible path.
+fn with_outlines(image: &RgbImage, scene: &[raster::Path]) -> RgbImage {
+    let (width, height) = image.dimensions();
+    let mut pixmap = Pixmap::new(width, height).expect("non-empty preview tile");
+    for (pixel, rgb) in pixmap.pixels_mut().iter_mut().zip(image.pixels()) {
+        *pixel = tiny_skia::ColorU8::from_rgba(rgb[0], rgb[1], rgb[2], 255).premultiply();
+    }
+    let mut paint = Paint::default();
+    paint.set_color_rgba8(20, 20, 20, 200);
+    let stroke = Stroke { width: 0.75, ..Stroke::default() };
+    let scale = Transform::from_scale(width as f32, height as f32);
+    for path in scene {
+        if let Some(outline) = skia_outline(path).and_then(|o| o.transform(scale)) {
+            pixmap.stroke_path(&outline, &paint, &stroke, Transform::identity(), None);
+        }
+    }
+    RgbImage::from_fn(width, height, |x, y| {
+        let p = pixmap.pixel(x, y).expect("inside the tile").demultiply();
+        Rgb([p.red(), p.green(), p.blue()])
+    })
+}

@@ -1,0 +1,101 @@
+//! What a running training shows: a progress bar (or plain lines off a terminal) and
+//! `metrics.jsonl`.
+
+use std::fs::{File, OpenOptions};
+use std::io::{IsTerminal, Write};
+use std::path::Path;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::{Map, Value};
+
+/// One logged step.
+pub struct StepRecord {
+    /// Steps completed.
+    pub step: usize,
+    /// Learning rate used.
+    pub lr: f64,
+    /// The total loss.
+    pub loss: f32,
+    /// Every loss term and weight by name.
+    pub values: Vec<(&'static str, f32)>,
+    /// Wall seconds of the step.
+    pub seconds: f64,
+    /// Of which waiting for data.
+    pub data_seconds: f64,
+    /// Samples per second over the step.
+    pub samples_per_second: f64,
+}
+
+/// Progress display and the metrics file.
+pub struct Reporter {
+    bar: Option<ProgressBar>,
+    metrics: File,
+    total: usize,
+}
+
+impl Reporter {
+    /// Appends to `dir/metrics.jsonl` (a resumed run continues the file) and shows progress
+    /// from `start` to `total` steps.
+    pub fn open(dir: &Path, start: usize, total: usize) -> std::io::Result<Self> {
+        let metrics = OpenOptions::new().create(true).append(true).open(dir.join("metrics.jsonl"))?;
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = ProgressBar::new(total as u64).with_position(start as u64);
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{bar:30} {pos}/{len} {msg} [{elapsed_precise} < {eta_precise}]",
+                )
+                .expect("valid template"),
+            );
+            bar
+        });
+        Ok(Self { bar, metrics, total })
+    }
+
+    /// Records a step: a JSON line in the metrics file, and the progress display.
+    pub fn record(&mut self, record: &StepRecord) -> std::io::Result<()> {
+        let mut line = Map::new();
+        line.insert("step".into(), record.step.into());
+        line.insert("loss".into(), f64::from(record.loss).into());
+        for (name, value) in &record.values {
+            line.insert((*name).into(), f64::from(*value).into());
+        }
+        line.insert("lr".into(), record.lr.into());
+        line.insert("seconds_per_step".into(), record.seconds.into());
+        line.insert("data_seconds".into(), record.data_seconds.into());
+        line.insert("samples_per_second".into(), record.samples_per_second.into());
+        writeln!(self.metrics, "{}", Value::Object(line))?;
+
+        let terms: Vec<String> =
+            record.values.iter().map(|(name, value)| format!("{name} {value:.4}")).collect();
+        let message = format!(
+            "loss {:.5} | {} | lr {:.2e} | {:.1} samples/s",
+            record.loss,
+            terms.join(" "),
+            record.lr,
+            record.samples_per_second
+        );
+        match &self.bar {
+            Some(bar) => {
+                bar.set_position(record.step as u64);
+                bar.set_message(message);
+            }
+            None => eprintln!("step {}/{} {message}", record.step, self.total),
+        }
+        Ok(())
+    }
+
+    /// Prints a line without breaking the progress bar.
+    pub fn say(&self, message: &str) {
+        match &self.bar {
+            Some(bar) => bar.println(message),
+            None => eprintln!("{message}"),
+        }
+    }
+
+    /// Removes the progress bar.
+    pub fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}

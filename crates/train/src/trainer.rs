@@ -1,0 +1,274 @@
+//! The training loop both stages share: resumable, observable, interruptible.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::{GradientsParams, ModuleOptimizer};
+use burn::tensor::{Bytes, DType, Device};
+use model::{Checkpoint, CheckpointError, ModelConfig};
+use serde::{Deserialize, Serialize};
+
+use crate::config::{DataConfig, OptimConfig};
+use crate::data::{DataError, DataSource, Loader};
+use crate::objective::Objective;
+use crate::optimizer::adamw;
+use crate::preview::write_preview;
+use crate::report::{Reporter, StepRecord};
+use crate::schedule::learning_rate;
+
+/// Why training stopped early.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// A checkpoint could not be read or written.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    /// The data could not be prepared.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// The output folder or a log could not be written.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// `--resume` found no usable training state.
+    #[error("{path}: cannot resume: {message}")]
+    Resume {
+        /// The checkpoint.
+        path: PathBuf,
+        /// What is missing.
+        message: String,
+    },
+    /// A loss term became NaN or infinite; the last good checkpoint is kept.
+    #[error(
+        "loss term `{term}` became {value} at step {step}; stopped, the last good checkpoint is kept at {checkpoint}"
+    )]
+    NonFinite {
+        /// The offending term.
+        term: String,
+        /// Its value.
+        value: f32,
+        /// The step it happened at (1-based).
+        step: usize,
+        /// The checkpoint left in place.
+        checkpoint: PathBuf,
+    },
+    /// Ctrl-C: a checkpoint was saved first.
+    #[error("interrupted at step {step}; saved {checkpoint} (continue with --resume)")]
+    Interrupted {
+        /// Steps completed.
+        step: usize,
+        /// The checkpoint written.
+        checkpoint: PathBuf,
+    },
+}
+
+/// The trainer's own state, stored in checkpoints as JSON.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TrainingState {
+    /// Steps completed.
+    pub step: usize,
+    /// Wall seconds spent training so far.
+    pub seconds: f64,
+    /// The full configuration the run used.
+    pub config: serde_json::Value,
+}
+
+/// A run's settings outside the config file.
+pub struct Run {
+    /// Output folder (checkpoint, metrics, previews).
+    pub dir: PathBuf,
+    /// The device, with autodiff.
+    pub device: Device,
+}
+
+/// Where a run starts: a fresh model, or a checkpoint's model, optimizer and step.
+pub struct Start<M> {
+    /// The model to train.
+    pub model: M,
+    /// Its configuration (stored in every checkpoint).
+    pub model_config: ModelConfig,
+    /// Optimizer state to restore, steps and seconds already done.
+    pub resumed: Option<(Bytes, TrainingState)>,
+}
+
+/// What a finished run reports.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    /// Steps completed in total.
+    pub steps: usize,
+    /// The last step's total loss.
+    pub final_loss: f32,
+    /// Wall seconds of training, over all sessions.
+    pub seconds: f64,
+    /// The checkpoint written.
+    pub checkpoint: PathBuf,
+}
+
+/// The checkpoint a stage writes in `dir`.
+pub fn checkpoint_path<O: Objective>(dir: &Path) -> PathBuf {
+    let stage = match O::STAGE {
+        model::Stage::Coarse => "coarse",
+        model::Stage::Refine => "refine",
+    };
+    dir.join(format!("{stage}.ckpt"))
+}
+
+/// Reads what `--resume` needs from the stage's checkpoint in `dir`: the model configuration,
+/// the checkpoint (to apply to a model built from that configuration), optimizer and state.
+pub fn resume_from<O: Objective>(dir: &Path) -> Result<(Checkpoint, Bytes, TrainingState), TrainError> {
+    let path = checkpoint_path::<O>(dir);
+    let checkpoint = Checkpoint::load(&path)?;
+    checkpoint.expect_stage(O::STAGE, &path)?;
+    let resume_error = |message: &str| TrainError::Resume { path: path.clone(), message: message.into() };
+    let optimizer =
+        checkpoint.optimizer.clone().ok_or_else(|| resume_error("it holds no optimizer state"))?;
+    let training =
+        checkpoint.training.as_deref().ok_or_else(|| resume_error("it holds no training state"))?;
+    let state: TrainingState = serde_json::from_str(training)
+        .map_err(|err| resume_error(&format!("damaged training state: {err}")))?;
+    Ok((checkpoint, optimizer, state))
+}
+
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Makes Ctrl-C request a checkpoint and a clean stop (installed once per process).
+fn catch_interrupts() {
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    INSTALLED.call_once(|| {
+        // Without a handler (another one installed), Ctrl-C simply ends the process.
+        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
+    });
+}
+
+/// Trains `start.model` with `objective` for `optim.steps` steps (from where `start` left off),
+/// writing `metrics.jsonl`, previews and checkpoints in `run.dir`.
+pub fn train<O: Objective>(
+    objective: &O,
+    start: Start<O::Model>,
+    optim: &OptimConfig,
+    data: &DataConfig,
+    config_json: serde_json::Value,
+    run: &Run,
+) -> Result<Summary, TrainError> {
+    let io = |path: &Path, err: &dyn std::fmt::Display| TrainError::Io {
+        path: path.to_path_buf(),
+        message: err.to_string(),
+    };
+    std::fs::create_dir_all(&run.dir).map_err(|err| io(&run.dir, &err))?;
+    catch_interrupts();
+    let checkpoint = checkpoint_path::<O>(&run.dir);
+    let Start { mut model, model_config, resumed } = start;
+    let mut optimizer = adamw(optim);
+    let (first_step, mut seconds) = match resumed {
+        Some((bytes, state)) => {
+            optimizer = optimizer
+                .from_bytes(bytes)
+                .map_err(|err| TrainError::Resume { path: checkpoint.clone(), message: err.to_string() })?;
+            (state.step, state.seconds)
+        }
+        None => (0, 0.0),
+    };
+    let save = |model: &O::Model,
+                optimizer: &ModuleOptimizer,
+                step: usize,
+                seconds: f64|
+     -> Result<(), TrainError> {
+        let mut file = Checkpoint::of_model(O::STAGE, &model_config, model, DType::F32);
+        file.optimizer = Some(optimizer.into_bytes().map_err(|err| io(&checkpoint, &err))?);
+        let state = TrainingState { step, seconds, config: config_json.clone() };
+        file.training = Some(serde_json::to_string(&state).expect("training state serializes"));
+        file.save(&checkpoint)?;
+        Ok(())
+    };
+
+    let crop = model_config.input_size;
+    let source = Arc::new(DataSource::new(data, crop, optim.batch_size, optim.seed)?);
+    let mut loader = Loader::start(source, first_step as u64, data.workers, data.prefetch);
+    let mut reporter = Reporter::open(&run.dir, first_step, optim.steps).map_err(|err| io(&run.dir, &err))?;
+    if first_step > 0 {
+        reporter.say(&format!("resuming from {} at step {first_step}", checkpoint.display()));
+    }
+    let mut final_loss = f32::NAN;
+    for step in first_step..optim.steps {
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            save(&model, &optimizer, step, seconds)?;
+            reporter.finish();
+            return Err(TrainError::Interrupted { step, checkpoint });
+        }
+        let started = Instant::now();
+        let batch = loader.next_batch();
+        let data_seconds = started.elapsed().as_secs_f64();
+        let (pixels, masks) = batch.tensors(&run.device);
+        let output = objective.step(&model, pixels, masks, step);
+
+        let total: f32 = output.total.clone().into_scalar();
+        let mut values: Vec<(&'static str, f32)> =
+            output.terms.iter().map(|(name, term)| (*name, term.clone().into_scalar::<f32>())).collect();
+        if let Some((term, value)) =
+            std::iter::once(("loss", total)).chain(values.iter().copied()).find(|(_, v)| !v.is_finite())
+        {
+            reporter.finish();
+            return Err(TrainError::NonFinite { term: term.into(), value, step: step + 1, checkpoint });
+        }
+        values.extend(output.weights.iter().copied());
+
+        let lr = learning_rate(optim, step);
+        let preview_due = optim.preview_every > 0 && (step + 1) % optim.preview_every == 0;
+        let preview = preview_due.then(|| {
+            let render: Vec<f32> = output.render.clone().try_to_vec_as().expect("render is readable");
+            (render, output.paths.detach())
+        });
+        let grads = GradientsParams::from_grads(output.total.backward(), &model);
+        model = optimizer.step(lr, model, grads);
+
+        let step_seconds = started.elapsed().as_secs_f64();
+        seconds += step_seconds;
+        final_loss = total;
+        let done = step + 1;
+        if done % optim.log_every == 0 || done == optim.steps {
+            let record = StepRecord {
+                step: done,
+                lr,
+                loss: total,
+                values,
+                seconds: step_seconds,
+                data_seconds,
+                samples_per_second: optim.batch_size as f64 / step_seconds,
+            };
+            reporter.record(&record).map_err(|err| io(&run.dir, &err))?;
+        }
+        if let Some((render, paths)) = preview {
+            let path = run.dir.join(format!("preview-{done:06}.png"));
+            write_preview(&path, &batch.pixels, &batch.masks, &render, &paths, objective.background(), 8)
+                .map_err(|err| io(&path, &err))?;
+        }
+        if done % optim.checkpoint_every == 0 && done != optim.steps {
+            save(&model, &optimizer, done, seconds)?;
+        }
+    }
+    save(&model, &optimizer, optim.steps.max(first_step), seconds)?;
+    reporter.finish();
+    Ok(Summary { steps: optim.steps.max(first_step), final_loss, seconds, checkpoint })
+}
+
+/// Builds a model of `config` on `device`, or takes the checkpoint's weights when resuming.
+pub fn model_from<M: Module>(
+    fresh: impl Fn(&ModelConfig) -> M,
+    config: &ModelConfig,
+    resume: Option<(Checkpoint, Bytes, TrainingState)>,
+    path: &Path,
+) -> Result<Start<M>, TrainError> {
+    match resume {
+        None => Ok(Start { model: fresh(config), model_config: config.clone(), resumed: None }),
+        Some((checkpoint, optimizer, state)) => {
+            let model = checkpoint.apply(fresh(&checkpoint.model_config), path)?;
+            Ok(Start { model, model_config: checkpoint.model_config, resumed: Some((optimizer, state)) })
+        }
+    }
+}
