@@ -1,7 +1,9 @@
 //! Checkpoint files: one burnpack file holding a model's weights, its configuration and stage,
 //! and, for training, the optimizer state and the trainer's own state.
 //!
-//! Tensors are stored under `model/…` and `optimizer/…`; metadata keys are `supersvg.format`,
+//! Model tensors are stored under `model/…`; the optimizer's own burnpack container (tensors,
+//! scalars such as Adam's step count, and parameter paths) is embedded whole as the byte tensor
+//! `optimizer`, so nothing of its state is lost. Metadata keys are `supersvg.format`,
 //! `supersvg.stage`, `supersvg.model` (the [`ModelConfig`] as JSON) and `supersvg.training` (an
 //! opaque JSON string owned by the trainer). Loading needs no flags: the configuration rebuilds
 //! the model before its weights are applied. Writes are atomic (a scratch file renamed over the
@@ -20,7 +22,7 @@ use crate::refine::RefineModel;
 
 const FORMAT: &str = "supersvg-checkpoint/1";
 const MODEL_PREFIX: &str = "model/";
-const OPTIMIZER_PREFIX: &str = "optimizer/";
+const OPTIMIZER_BLOB: &str = "optimizer";
 
 /// Which network a checkpoint holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,7 +121,8 @@ impl Checkpoint {
         };
         let mut tensors = rename(MODEL_PREFIX, &self.model).map_err(io)?;
         if let Some(optimizer) = &self.optimizer {
-            tensors.extend(rename(OPTIMIZER_PREFIX, optimizer).map_err(io)?);
+            let data = TensorData::new(optimizer.to_vec(), [optimizer.len()]);
+            tensors.push(Entry { name: OPTIMIZER_BLOB.into(), id: None, data });
         }
         let tensors = tensors.into_iter().map(Entry::into_pack).collect();
         let model_json = serde_json::to_string(&self.model_config).expect("configs serialize");
@@ -237,13 +240,13 @@ fn pack(entries: Vec<Entry>) -> Result<Bytes, String> {
 
 /// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers.
 fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), String> {
-    let (mut model, mut optimizer) = (Vec::new(), Vec::new());
+    let (mut model, mut optimizer) = (Vec::new(), None);
     for tensor in tensors {
         let entry = Entry::from_pack(tensor)?;
         if let Some(rest) = entry.name.strip_prefix(MODEL_PREFIX) {
             model.push(Entry { name: rest.to_string(), ..entry });
-        } else if let Some(rest) = entry.name.strip_prefix(OPTIMIZER_PREFIX) {
-            optimizer.push(Entry { name: rest.to_string(), ..entry });
+        } else if entry.name == OPTIMIZER_BLOB {
+            optimizer = Some(entry.data.into_bytes());
         } else {
             return Err(format!("unexpected tensor `{}`", entry.name));
         }
@@ -251,6 +254,5 @@ fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), Stri
     if model.is_empty() {
         return Err("no model weights".into());
     }
-    let optimizer = if optimizer.is_empty() { None } else { Some(pack(optimizer)?) };
     Ok((pack(model)?, optimizer))
 }

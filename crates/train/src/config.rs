@@ -94,6 +94,8 @@ pub struct DataConfig {
     pub workers: usize,
     /// Batches prepared ahead of the model.
     pub prefetch: usize,
+    /// Use batch 0 at every step (overfitting one batch: a sanity check, and the smoke tests).
+    pub fixed_batch: bool,
 }
 
 impl Default for DataConfig {
@@ -108,6 +110,7 @@ impl Default for DataConfig {
             crop_padding: 2,
             workers: 1,
             prefetch: 4,
+            fixed_batch: false,
         }
     }
 }

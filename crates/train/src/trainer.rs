@@ -1,5 +1,6 @@
 //! The training loop both stages share: resumable, observable, interruptible.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -77,6 +78,10 @@ pub struct TrainingState {
     pub seconds: f64,
     /// The full configuration the run used.
     pub config: serde_json::Value,
+    /// Exponential moving averages (over about the last 50 steps) of every loss term: what the
+    /// model currently achieves, e.g. how many paths it keeps visible.
+    #[serde(default)]
+    pub recent: BTreeMap<String, f32>,
 }
 
 /// A run's settings outside the config file.
@@ -135,6 +140,9 @@ pub fn resume_from<O: Objective>(dir: &Path) -> Result<(Checkpoint, Bytes, Train
     Ok((checkpoint, optimizer, state))
 }
 
+/// Horizon (steps) of the moving averages kept in [`TrainingState::recent`].
+const RECENT_STEPS: f32 = 50.0;
+
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// Makes Ctrl-C request a checkpoint and a clean stop (installed once per process).
@@ -165,23 +173,24 @@ pub fn train<O: Objective>(
     let checkpoint = checkpoint_path::<O>(&run.dir);
     let Start { mut model, model_config, resumed } = start;
     let mut optimizer = adamw(optim);
-    let (first_step, mut seconds) = match resumed {
+    let (first_step, mut seconds, mut recent) = match resumed {
         Some((bytes, state)) => {
             optimizer = optimizer
                 .from_bytes(bytes)
                 .map_err(|err| TrainError::Resume { path: checkpoint.clone(), message: err.to_string() })?;
-            (state.step, state.seconds)
+            (state.step, state.seconds, state.recent)
         }
-        None => (0, 0.0),
+        None => (0, 0.0, BTreeMap::new()),
     };
     let save = |model: &O::Model,
                 optimizer: &ModuleOptimizer,
                 step: usize,
-                seconds: f64|
+                seconds: f64,
+                recent: &BTreeMap<String, f32>|
      -> Result<(), TrainError> {
         let mut file = Checkpoint::of_model(O::STAGE, &model_config, model, DType::F32);
         file.optimizer = Some(optimizer.into_bytes().map_err(|err| io(&checkpoint, &err))?);
-        let state = TrainingState { step, seconds, config: config_json.clone() };
+        let state = TrainingState { step, seconds, config: config_json.clone(), recent: recent.clone() };
         file.training = Some(serde_json::to_string(&state).expect("training state serializes"));
         file.save(&checkpoint)?;
         Ok(())
@@ -197,7 +206,7 @@ pub fn train<O: Objective>(
     let mut final_loss = f32::NAN;
     for step in first_step..optim.steps {
         if INTERRUPTED.load(Ordering::SeqCst) {
-            save(&model, &optimizer, step, seconds)?;
+            save(&model, &optimizer, step, seconds, &recent)?;
             reporter.finish();
             return Err(TrainError::Interrupted { step, checkpoint });
         }
@@ -215,6 +224,10 @@ pub fn train<O: Objective>(
         {
             reporter.finish();
             return Err(TrainError::NonFinite { term: term.into(), value, step: step + 1, checkpoint });
+        }
+        for &(name, value) in std::iter::once(&("loss", total)).chain(&values) {
+            let average = recent.entry(name.to_string()).or_insert(value);
+            *average += (value - *average) / RECENT_STEPS;
         }
         values.extend(output.weights.iter().copied());
 
@@ -249,21 +262,24 @@ pub fn train<O: Objective>(
                 .map_err(|err| io(&path, &err))?;
         }
         if done % optim.checkpoint_every == 0 && done != optim.steps {
-            save(&model, &optimizer, done, seconds)?;
+            save(&model, &optimizer, done, seconds, &recent)?;
         }
     }
-    save(&model, &optimizer, optim.steps.max(first_step), seconds)?;
+    save(&model, &optimizer, optim.steps.max(first_step), seconds, &recent)?;
     reporter.finish();
     Ok(Summary { steps: optim.steps.max(first_step), final_loss, seconds, checkpoint })
 }
 
-/// Builds a model of `config` on `device`, or takes the checkpoint's weights when resuming.
+/// Builds a model of `config` (its initialization drawn from `seed` on `device`), or takes the
+/// checkpoint's weights when resuming.
 pub fn model_from<M: Module>(
     fresh: impl Fn(&ModelConfig) -> M,
     config: &ModelConfig,
     resume: Option<(Checkpoint, Bytes, TrainingState)>,
     path: &Path,
+    (device, seed): (&Device, u64),
 ) -> Result<Start<M>, TrainError> {
+    device.seed(seed);
     match resume {
         None => Ok(Start { model: fresh(config), model_config: config.clone(), resumed: None }),
         Some((checkpoint, optimizer, state)) => {

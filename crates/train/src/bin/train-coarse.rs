@@ -33,7 +33,13 @@ fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::
     let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
     let resume = if args.resume { Some(resume_from::<CoarseObjective>(&dir)?) } else { None };
     let path = checkpoint_path::<CoarseObjective>(&dir);
-    let start = model_from(|c| CoarseModel::new(c, &device), &config.model.0, resume, &path)?;
+    let start = model_from(
+        |c| CoarseModel::new(c, &device),
+        &config.model.0,
+        resume,
+        &path,
+        (&device, config.train.seed),
+    )?;
     let config_json = serde_json::to_value(&config)?;
     let run = Run { dir, device };
     Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)

@@ -76,10 +76,11 @@ impl DataSource {
     }
 
     /// Batch `index` of the stream: a pure function of the seed and the index, so a resumed run
-    /// sees exactly the batches an uninterrupted one would.
+    /// sees exactly the batches an uninterrupted one would (with `fixed_batch`, batch 0's
+    /// content every time).
     pub fn batch(&self, index: u64) -> Batch {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
-        rng.set_stream(index);
+        rng.set_stream(if self.config.fixed_batch { 0 } else { index });
         let s = self.crop.size;
         let (mut pixels, mut masks) = (Vec::new(), Vec::new());
         while masks.len() < self.batch_size * s * s {

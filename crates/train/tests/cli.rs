@@ -1,0 +1,115 @@
+//! The training programs refuse bad input with a clear message and a failing exit code.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("supersvg-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn smoke(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs").join(name)
+}
+
+/// Runs a program, expecting failure; returns its stderr.
+fn fails(program: &str, args: &[&str]) -> String {
+    let output = Command::new(program).args(args).output().unwrap();
+    assert!(!output.status.success(), "{program} {args:?} should fail");
+    assert_eq!(output.status.code(), Some(1));
+    String::from_utf8(output.stderr).unwrap()
+}
+
+const COARSE: &str = env!("CARGO_BIN_EXE_train-coarse");
+const REFINE: &str = env!("CARGO_BIN_EXE_train-refine");
+
+#[test]
+fn bad_configs_are_refused_by_name() {
+    let dir = scratch("config");
+    let config = dir.join("bad.toml");
+    std::fs::write(&config, "[data]\nsynthetic = true\n[train]\nbatch_sise = 4\n").unwrap();
+    let err = fails(COARSE, &["--config", config.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert!(err.contains("bad.toml") && err.contains("batch_sise"), "{err}");
+
+    std::fs::write(&config, "[data]\nsynthetic = true\n[train]\nlr = -1.0\n").unwrap();
+    let err = fails(COARSE, &["--config", config.to_str().unwrap()]);
+    assert!(err.contains("train.lr must be positive"), "{err}");
+
+    let err = fails(COARSE, &["--config", dir.join("missing.toml").to_str().unwrap()]);
+    assert!(err.contains("missing.toml"), "{err}");
+}
+
+#[test]
+fn an_empty_data_folder_is_refused() {
+    let dir = scratch("data");
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).unwrap();
+    let config = dir.join("empty.toml");
+    let text = std::fs::read_to_string(smoke("smoke-coarse.toml")).unwrap().replace(
+        "[data]\nsynthetic = true",
+        &format!("[data]\nsynthetic = false\nimages = {:?}", images.to_str().unwrap()),
+    );
+    std::fs::write(&config, text).unwrap();
+    let err =
+        fails(COARSE, &["--config", config.to_str().unwrap(), "--out", dir.join("run").to_str().unwrap()]);
+    assert!(err.contains("no readable image") && err.contains("images"), "{err}");
+}
+
+#[test]
+fn refinement_needs_a_coarse_checkpoint() {
+    let dir = scratch("init");
+    let config = smoke("smoke-refine.toml");
+    let missing = dir.join("nowhere.ckpt");
+    let err = fails(REFINE, &["--config", config.to_str().unwrap(), "--init", missing.to_str().unwrap()]);
+    assert!(err.contains("nowhere.ckpt") && err.contains("no such file"), "{err}");
+
+    // A refinement checkpoint where a coarse one is needed: train one for a single step.
+    let coarse_dir = dir.join("coarse");
+    let ok = Command::new(COARSE)
+        .args([
+            "--config",
+            smoke("smoke-coarse.toml").to_str().unwrap(),
+            "--out",
+            coarse_dir.to_str().unwrap(),
+            "--steps",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let refine_dir = dir.join("refine");
+    let coarse_ckpt = coarse_dir.join("coarse.ckpt");
+    let ok = Command::new(REFINE)
+        .args([
+            "--config",
+            config.to_str().unwrap(),
+            "--init",
+            coarse_ckpt.to_str().unwrap(),
+            "--out",
+            refine_dir.to_str().unwrap(),
+            "--steps",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let wrong = refine_dir.join("refine.ckpt");
+    let err = fails(REFINE, &["--config", config.to_str().unwrap(), "--init", wrong.to_str().unwrap()]);
+    assert!(err.contains("refine checkpoint") && err.contains("coarse checkpoint is needed"), "{err}");
+
+    // Resuming where nothing was trained.
+    let err = fails(
+        COARSE,
+        &[
+            "--config",
+            smoke("smoke-coarse.toml").to_str().unwrap(),
+            "--out",
+            dir.join("fresh").to_str().unwrap(),
+            "--resume",
+        ],
+    );
+    assert!(err.contains("coarse.ckpt"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,122 @@
+//! Short real trainings on the smoke configs: the loss falls, resuming is exact, refinement
+//! learns its DPW term.
+
+use std::path::{Path, PathBuf};
+
+use burn::module::Module;
+use burn::tensor::Device;
+use model::{CoarseModel, RefineModel, load_coarse};
+use train::config::{self, CoarseConfig, Guidance, RefineConfig};
+use train::objective::{CoarseObjective, RefineObjective};
+use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
+
+/// Model initialization draws from the device's random generator, which is shared by the whole
+/// process: tests that compare initializations must not run at the same time.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("supersvg-train-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// `(step, value)` of `key` in every line of a run's metrics file.
+fn metric(dir: &Path, key: &str) -> Vec<(usize, f64)> {
+    std::fs::read_to_string(dir.join("metrics.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|line| {
+            let json: serde_json::Value = serde_json::from_str(line).unwrap();
+            (json["step"].as_u64().unwrap() as usize, json[key].as_f64().unwrap())
+        })
+        .collect()
+}
+
+fn smoke_coarse() -> CoarseConfig {
+    let mut config: CoarseConfig = config::load(&workspace().join("configs/smoke-coarse.toml")).unwrap();
+    config.data.fixed_batch = true;
+    config
+}
+
+/// Trains the coarse smoke config into `dir` for `steps` steps, resuming if asked.
+fn coarse(dir: &Path, steps: usize, resume: bool) -> f32 {
+    let mut config = smoke_coarse();
+    config.train.steps = steps;
+    let device = Device::flex().autodiff();
+    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let resumed = resume.then(|| resume_from::<CoarseObjective>(dir).unwrap());
+    let path = checkpoint_path::<CoarseObjective>(dir);
+    let start = model_from(
+        |c| CoarseModel::new(c, &device),
+        &config.model.0,
+        resumed,
+        &path,
+        (&device, config.train.seed),
+    )
+    .unwrap();
+    let run = Run { dir: dir.to_path_buf(), device };
+    let json = serde_json::to_value(&config).unwrap();
+    train(&objective, start, &config.train, &config.data, json, &run).unwrap().final_loss
+}
+
+#[test]
+fn coarse_loss_falls_and_resuming_reproduces_the_uninterrupted_run() {
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let straight = scratch("straight");
+    let final_loss = coarse(&straight, 30, false);
+    let losses = metric(&straight, "loss");
+    let first = losses.first().unwrap().1;
+    assert!((final_loss as f64) < 0.7 * first, "loss {first} → {final_loss}");
+
+    let interrupted = scratch("interrupted");
+    coarse(&interrupted, 15, false);
+    let resumed = coarse(&interrupted, 30, true);
+    assert_eq!(resumed, final_loss, "resuming at step 15 must give the 30-step run's loss exactly");
+    assert_eq!(metric(&interrupted, "loss"), losses, "the whole loss curve is reproduced");
+    for dir in [straight, interrupted] {
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}
+
+#[test]
+fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let coarse_dir = scratch("teacher");
+    coarse(&coarse_dir, 30, false);
+    let mut config: RefineConfig = config::load(&workspace().join("configs/smoke-refine.toml")).unwrap();
+    config.data.fixed_batch = true;
+    assert_eq!(config.loss.guidance, Guidance::Dpw);
+
+    let device = Device::flex().autodiff();
+    let (teacher, model_config) =
+        load_coarse(&checkpoint_path::<CoarseObjective>(&coarse_dir), &device).unwrap();
+    let dir = scratch("refine");
+    let path = checkpoint_path::<RefineObjective>(&dir);
+    let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
+    let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
+    let objective = RefineObjective {
+        teacher: teacher.clone().freeze(),
+        loss: config.loss.clone(),
+        raster: config.raster.options(),
+        seed: config.train.seed,
+    };
+    let run = Run { dir: dir.clone(), device };
+    let json = serde_json::to_value(&config).unwrap();
+    train(&objective, start, &config.train, &config.data, json, &run).unwrap();
+
+    let dpw: Vec<f64> = metric(&dir, "guidance").into_iter().map(|(_, v)| v).collect();
+    assert!(dpw.iter().all(|v| v.is_finite()), "{dpw:?}");
+    let half = dpw.len() / 2;
+    let (early, late) = (
+        dpw[..half].iter().sum::<f64>() / half as f64,
+        dpw[half..].iter().sum::<f64>() / (dpw.len() - half) as f64,
+    );
+    assert!(late < early, "DPW did not decrease: {dpw:?}");
+    for dir in [coarse_dir, dir] {
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}
