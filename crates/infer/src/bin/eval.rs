@@ -1,0 +1,301 @@
+//! `eval`: SuperSVG (B, and F when asked) against other vectorizers on a folder of images.
+//!
+//! `eval DIR --paths 500,2000,4000 [--finetune-secs 10] --out report.md`
+//!
+//! Every SVG is rendered with resvg, independently of the project's renderers, at the working
+//! resolution, and compared with the input scaled to it. Writes a markdown report and a contact
+//! sheet (input | each method) next to it.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+use image::{Rgb32FImage, RgbImage};
+use infer::decode::load;
+use infer::finetune::{Budget, FinetuneOptions, finetune};
+use infer::metrics::{mse, psnr, ssim};
+use infer::models::{Models, bundled};
+use infer::peers::{available, count_shapes, mean_color_superpixels, potrace_colors, render_svg, vtracer};
+use infer::pipeline::{Options, vectorize};
+use infer::write::{write_atomic, write_png};
+use raster::{Backend, to_svg};
+
+/// Evaluate SuperSVG and other vectorizers on a folder of images.
+#[derive(Parser, Debug)]
+#[command(name = "eval", version)]
+struct Args {
+    /// Folder of images.
+    dir: PathBuf,
+    /// Path budgets, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "500,2000")]
+    paths: Vec<usize>,
+    /// Also run SuperSVG-F, fine-tuning for this many seconds per image.
+    #[arg(long)]
+    finetune_secs: Option<f64>,
+    /// The markdown report to write; the contact sheet goes next to it as PNG.
+    #[arg(long)]
+    out: PathBuf,
+    /// Coarse-model checkpoint (default: the bundled one).
+    #[arg(long)]
+    coarse: Option<PathBuf>,
+    /// Refinement-model checkpoint (default: the bundled one).
+    #[arg(long)]
+    refine: Option<PathBuf>,
+    /// Compute backend: flex, ndarray or wgpu.
+    #[arg(long, default_value = "flex")]
+    backend: Backend,
+    /// Long side of the working resolution.
+    #[arg(long, default_value_t = 512)]
+    size: u32,
+    /// Peers to run when installed: vtracer, potrace, slic (comma separated; empty for none).
+    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic")]
+    peers: Vec<String>,
+    /// Evaluate only the first N images.
+    #[arg(long)]
+    limit: Option<usize>,
+}
+
+/// One method's result on one image at one budget.
+struct Row {
+    shapes: usize,
+    mse: f64,
+    psnr: f64,
+    ssim: f64,
+    seconds: f64,
+}
+
+fn main() -> ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: Args) -> Result<(), String> {
+    let mut images: Vec<PathBuf> = std::fs::read_dir(&args.dir)
+        .map_err(|err| format!("{}: {err}", args.dir.display()))?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|path| path.is_file())
+        .collect();
+    images.sort();
+    images.truncate(args.limit.unwrap_or(usize::MAX));
+    if images.is_empty() {
+        return Err(format!("{}: no images", args.dir.display()));
+    }
+    let device = args.backend.device().map_err(|err| err.to_string())?;
+    let coarse = args.coarse.clone().map_or_else(|| bundled("coarse.ckpt"), Ok)?;
+    let refine = args.refine.clone().map_or_else(|| bundled("refine.ckpt"), Ok)?;
+    let models = Models::load(&coarse, Some(&refine), &device).map_err(|err| err.to_string())?;
+    let scratch = std::env::temp_dir().join(format!("supersvg-eval-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch).map_err(|err| err.to_string())?;
+
+    let wanted = |peer: &str| args.peers.iter().any(|p| p == peer);
+    let use_vtracer = wanted("vtracer") && available("vtracer");
+    let use_potrace = wanted("potrace") && available("potrace");
+    let mut notes = Vec::new();
+    for (peer, used) in [("vtracer", use_vtracer), ("potrace", use_potrace)] {
+        if wanted(peer) && !used {
+            notes.push(format!("{peer} is not installed: its rows are missing."));
+        }
+    }
+    notes.push("LPIPS: not computed (no LPIPS weights are available to this build).".into());
+
+    // results[(budget, method)] = one row per image
+    let mut results: BTreeMap<(usize, String), Vec<Row>> = BTreeMap::new();
+    let mut sheet_rows: Vec<Vec<(String, Rgb32FImage)>> = Vec::new();
+    for (index, path) in images.iter().enumerate() {
+        let loaded = match load(path, args.size) {
+            Ok(loaded) => loaded,
+            Err(err) => {
+                eprintln!("skipping {err}");
+                continue;
+            }
+        };
+        let image = &loaded.image;
+        let (width, height) = image.dimensions();
+        let png = scratch.join("input.png");
+        write_png(&png, &to_rgb8(image)).map_err(|err| err.to_string())?;
+        let mut tiles = vec![("input".to_string(), image.clone())];
+        let mut record = |budget: usize,
+                          method: &str,
+                          svg_or_image: Result<(Rgb32FImage, usize), String>,
+                          seconds: f64,
+                          tiles: &mut Vec<(String, Rgb32FImage)>| {
+            match svg_or_image {
+                Ok((drawn, shapes)) => {
+                    let row = Row {
+                        shapes,
+                        mse: mse(&drawn, image),
+                        psnr: psnr(&drawn, image),
+                        ssim: ssim(&drawn, image).unwrap_or(f64::NAN),
+                        seconds,
+                    };
+                    if budget == args.paths[0] {
+                        tiles.push((method.to_string(), drawn));
+                    }
+                    results.entry((budget, method.to_string())).or_default().push(row);
+                }
+                Err(err) => eprintln!("{}: {method} at {budget}: {err}", path.display()),
+            }
+        };
+        let rendered = |svg: &str| render_svg(svg, width, height).map(|drawn| (drawn, count_shapes(svg)));
+        for &budget in &args.paths {
+            let started = Instant::now();
+            let options = Options { paths: budget, ..Options::default() };
+            let mut result = vectorize(&models, image, &options, &device);
+            let svg = to_svg(&result.scene(), width, height, Some(options.background))
+                .map_err(|e| e.to_string())?;
+            let seconds = started.elapsed().as_secs_f64();
+            record(budget, "SuperSVG-B (ours)", rendered(&svg), seconds, &mut tiles);
+            if let Some(limit) = args.finetune_secs {
+                let tuning = Instant::now();
+                let options_f =
+                    FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
+                finetune(
+                    &mut result.paths,
+                    &result.segmentation,
+                    image,
+                    &options_f,
+                    &device.clone().autodiff(),
+                );
+                let svg = to_svg(&result.scene(), width, height, Some(options.background))
+                    .map_err(|e| e.to_string())?;
+                let total = seconds + tuning.elapsed().as_secs_f64();
+                record(budget, "SuperSVG-F (ours)", rendered(&svg), total, &mut tiles);
+            }
+            if use_vtracer {
+                let traced = vtracer(&png, Some(budget), &scratch);
+                let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
+                record(budget, "vtracer", traced.and_then(|t| rendered(&t.svg)), seconds, &mut tiles);
+            }
+            if use_potrace {
+                let traced = potrace_colors(image, 16, Some(budget), &scratch);
+                let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
+                record(
+                    budget,
+                    "potrace, 16 colour layers",
+                    traced.and_then(|t| rendered(&t.svg)),
+                    seconds,
+                    &mut tiles,
+                );
+            }
+            if wanted("slic") {
+                let (filled, regions, seconds) = mean_color_superpixels(image, budget);
+                record(budget, "SLIC regions, mean colour", Ok((filled, regions)), seconds, &mut tiles);
+            }
+        }
+        if use_vtracer {
+            let traced = vtracer(&png, None, &scratch);
+            let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
+            record(
+                0,
+                "vtracer (default settings)",
+                traced.and_then(|t| rendered(&t.svg)),
+                seconds,
+                &mut tiles,
+            );
+        }
+        if sheet_rows.len() < 8 {
+            sheet_rows.push(tiles);
+        }
+        eprintln!("[{}/{}] {}", index + 1, images.len(), path.display());
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+
+    let sheet_path = args.out.with_extension("png");
+    write_png(&sheet_path, &contact_sheet(&sheet_rows, 160))
+        .map_err(|err| format!("{}: {err}", sheet_path.display()))?;
+    let columns: Vec<String> =
+        sheet_rows.first().map(|row| row.iter().map(|(name, _)| name.clone()).collect()).unwrap_or_default();
+    let report = report(&args, images.len(), &results, &notes, (&sheet_path, &columns));
+    write_atomic(&args.out, report.as_bytes()).map_err(|err| format!("{}: {err}", args.out.display()))?;
+    eprintln!("wrote {} and {}", args.out.display(), sheet_path.display());
+    Ok(())
+}
+
+fn to_rgb8(image: &Rgb32FImage) -> RgbImage {
+    image::DynamicImage::ImageRgb32F(image.clone()).to_rgb8()
+}
+
+/// The markdown report: one table per budget with the mean over images.
+fn report(
+    args: &Args,
+    images: usize,
+    results: &BTreeMap<(usize, String), Vec<Row>>,
+    notes: &[String],
+    (sheet, columns): (&Path, &[String]),
+) -> String {
+    let mut text = format!(
+        "# Evaluation on `{}`\n\n{images} images, working resolution {} px (long side). Every SVG rendered \
+         with resvg and compared with the input at that size; means over images. \"shapes\" counts closed \
+         subpaths, the same unit for every method.\n\nCommand: `{}`\n\n",
+        args.dir.display(),
+        args.size,
+        std::env::args().collect::<Vec<_>>().join(" ")
+    );
+    let budgets: Vec<usize> = {
+        let mut b: Vec<usize> = results.keys().map(|(budget, _)| *budget).collect();
+        b.dedup();
+        b
+    };
+    for budget in budgets {
+        let title = if budget == 0 { "Default settings".to_string() } else { format!("{budget} paths") };
+        let _ = writeln!(
+            text,
+            "## {title}\n\n| method | shapes | PSNR (dB) | SSIM | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+        );
+        for ((_, method), rows) in results.iter().filter(|((b, _), _)| *b == budget) {
+            let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
+            let _ = writeln!(
+                text,
+                "| {method} | {:.0} | {:.2} | {:.4} | {:.5} | — | {:.2} |",
+                mean(&|r| r.shapes as f64),
+                mean(&|r| r.psnr),
+                mean(&|r| r.ssim),
+                mean(&|r| r.mse),
+                mean(&|r| r.seconds)
+            );
+        }
+        text.push('\n');
+    }
+    for note in notes {
+        let _ = writeln!(text, "- {note}");
+    }
+    let _ = writeln!(
+        text,
+        "\nContact sheet at {} paths: `{}` (columns: {}).",
+        args.paths[0],
+        sheet.display(),
+        columns.join(" | ")
+    );
+    text
+}
+
+/// Rows of tiles (input, then each method) scaled to `tile` px, with their names.
+fn contact_sheet(rows: &[Vec<(String, Rgb32FImage)>], tile: u32) -> RgbImage {
+    let columns = rows.iter().map(Vec::len).max().unwrap_or(1) as u32;
+    let mut sheet = RgbImage::from_pixel(
+        columns * (tile + 4) + 4,
+        rows.len() as u32 * (tile + 4) + 4,
+        image::Rgb([255, 255, 255]),
+    );
+    for (r, row) in rows.iter().enumerate() {
+        for (c, (_, image)) in row.iter().enumerate() {
+            let scale = tile as f32 / image.width().max(image.height()) as f32;
+            let (w, h) = (
+                ((image.width() as f32 * scale) as u32).max(1),
+                ((image.height() as f32 * scale) as u32).max(1),
+            );
+            let small = image::imageops::resize(&to_rgb8(image), w, h, image::imageops::FilterType::Triangle);
+            let (x, y) = (4 + c as u32 * (tile + 4), 4 + r as u32 * (tile + 4));
+            image::imageops::replace(&mut sheet, &small, x.into(), y.into());
+        }
+    }
+    sheet
+}

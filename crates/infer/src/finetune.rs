@@ -1,0 +1,162 @@
+//! SuperSVG-F: optimizing every path of a result against the image with the soft rasterizer.
+//!
+//! Region-local so it scales to thousands of paths: the paths of one superpixel are optimized
+//! inside that region's padded bounding box, painted over a fixed exact rendering of all other
+//! paths, against the image there (L2, Adam). Regions take turns, worst first, until the step
+//! or time budget is spent. Coordinates stay in the region's box and colours in [0, 1].
+
+use std::time::Instant;
+
+use burn::module::Param;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::tensor::{Device, Tensor, TensorData};
+use image::Rgb32FImage;
+use raster::{PARAMS, Path, PathBatch, SoftRasterOptions, paint_soft};
+use superpixel::{BoundingBox, CropTransform, Segmentation};
+
+use crate::pipeline::{Placed, region_errors, render};
+
+/// How long to fine-tune.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// This many Adam steps for every region.
+    StepsPerRegion(usize),
+    /// Rounds over all regions until this many seconds have passed.
+    Seconds(f64),
+}
+
+/// Settings of the fine-tuning.
+#[derive(Clone, Debug)]
+pub struct FinetuneOptions {
+    /// When to stop.
+    pub budget: Budget,
+    /// Adam learning rate (parameters are in units of the region's box).
+    pub lr: f64,
+    /// Adam steps a region takes per turn.
+    pub steps_per_turn: usize,
+    /// Pixels added around each region's box.
+    pub padding: u32,
+    /// The soft rasterizer.
+    pub raster: SoftRasterOptions,
+}
+
+impl Default for FinetuneOptions {
+    fn default() -> Self {
+        Self {
+            budget: Budget::StepsPerRegion(20),
+            lr: 1e-3,
+            steps_per_turn: 5,
+            padding: 4,
+            raster: SoftRasterOptions::default(),
+        }
+    }
+}
+
+/// Fine-tunes `paths` (image unit square) against `image` on `device` (with autodiff).
+/// Returns the number of optimizer steps taken.
+pub fn finetune(
+    paths: &mut [Placed],
+    segmentation: &Segmentation,
+    image: &Rgb32FImage,
+    options: &FinetuneOptions,
+    device: &Device,
+) -> usize {
+    let started = Instant::now();
+    let (width, height) = image.dimensions();
+    let mut order: Vec<u32> = (0..segmentation.regions.len() as u32).collect();
+    let background = options.raster.background;
+    let scene: Vec<Path> = paths.iter().map(|p| p.path).collect();
+    let errors = region_errors(&render(&scene, width, height, background), image, segmentation);
+    order.sort_by(|a, b| errors[*b as usize].total_cmp(&errors[*a as usize]));
+    let mut steps = 0;
+    let mut taken = vec![0usize; order.len()];
+    loop {
+        let mut progressed = false;
+        for &region in &order {
+            let turn = match options.budget {
+                Budget::StepsPerRegion(total) => options.steps_per_turn.min(total - taken[region as usize]),
+                Budget::Seconds(limit) if started.elapsed().as_secs_f64() >= limit => return steps,
+                Budget::Seconds(_) => options.steps_per_turn,
+            };
+            let members: Vec<usize> = (0..paths.len()).filter(|&i| paths[i].region == region).collect();
+            if turn == 0 || members.is_empty() {
+                continue;
+            }
+            let bbox = segmentation.regions[region as usize].bbox;
+            let bbox = BoundingBox {
+                x0: bbox.x0.saturating_sub(options.padding),
+                y0: bbox.y0.saturating_sub(options.padding),
+                x1: (bbox.x1 + options.padding).min(width),
+                y1: (bbox.y1 + options.padding).min(height),
+            };
+            let transform = CropTransform::of_box(bbox);
+            let others: Vec<Path> =
+                paths.iter().enumerate().filter(|(i, _)| !members.contains(i)).map(|(_, p)| p.path).collect();
+            let local: Vec<Path> =
+                members.iter().map(|&i| to_box(paths[i].path, &transform, width, height)).collect();
+            let tuned = optimize(&local, &others, image, bbox, turn, options, device);
+            for (&i, path) in members.iter().zip(tuned) {
+                paths[i].path = from_box(path, &transform, width, height);
+            }
+            taken[region as usize] += turn;
+            steps += turn;
+            progressed = true;
+        }
+        if !progressed {
+            return steps;
+        }
+    }
+}
+
+/// `steps` Adam steps on `local` (box unit square) painted over the exact rendering of
+/// `others`, against the image inside `bbox`.
+fn optimize(
+    local: &[Path],
+    others: &[Path],
+    image: &Rgb32FImage,
+    bbox: BoundingBox,
+    steps: usize,
+    options: &FinetuneOptions,
+    device: &Device,
+) -> Vec<Path> {
+    let (width, height) = image.dimensions();
+    let (w, h) = (bbox.width() as usize, bbox.height() as usize);
+    let everything_else = render(others, width, height, options.raster.background);
+    let planar = |source: &Rgb32FImage| -> Tensor<4> {
+        let values: Vec<f32> = (0..3)
+            .flat_map(|c| {
+                (bbox.y0..bbox.y1)
+                    .flat_map(move |y| (bbox.x0..bbox.x1).map(move |x| source.get_pixel(x, y).0[c]))
+            })
+            .collect();
+        Tensor::from_data(TensorData::new(values, [1, 3, h, w]), device)
+    };
+    let (canvas, target) = (planar(&everything_else), planar(image));
+    let initial = PathBatch::from_scenes(&[local.to_vec()], device).into_params();
+    let mut params = Param::from_tensor(initial);
+    let mut optimizer = AdamConfig::new().init();
+    for _ in 0..steps {
+        let render = paint_soft(canvas.clone(), &PathBatch::new(params.val()), &options.raster);
+        let loss = (render - target.clone()).square().mean();
+        let grads = GradientsParams::from_grads(loss.backward(), &params);
+        params = optimizer.step(options.lr, params, grads);
+        params = params.map(|p| keep_in_range(p).detach().require_grad());
+    }
+    let tuned = PathBatch::new(params.val().detach());
+    tuned.to_scenes().remove(0)
+}
+
+/// Coordinates and colours clamped to [0, 1]; α left as it is.
+fn keep_in_range(params: Tensor<3>) -> Tensor<3> {
+    let [batch, paths, _] = params.dims();
+    let ranged = params.clone().narrow(2, 0, PARAMS - 1).clamp(0.0, 1.0);
+    Tensor::cat(vec![ranged, params.narrow(2, PARAMS - 1, 1).reshape([batch, paths, 1])], 2)
+}
+
+fn to_box(path: Path, transform: &CropTransform, width: u32, height: u32) -> Path {
+    path.map_points(|[x, y]| transform.from_image([x * width as f32, y * height as f32]))
+}
+
+fn from_box(path: Path, transform: &CropTransform, width: u32, height: u32) -> Path {
+    path.map_points(|p| transform.to_image_unit(p, width, height))
+}

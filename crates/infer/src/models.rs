@@ -1,0 +1,75 @@
+//! The two networks inference runs, and where the bundled ones are found.
+
+use std::path::{Path, PathBuf};
+
+use burn::tensor::Device;
+use model::{Checkpoint, CheckpointError, CoarseModel, ModelConfig, RefineModel, Stage};
+
+/// The trained networks, ready for inference.
+pub struct Models {
+    /// E_c.
+    pub coarse: CoarseModel,
+    /// E_r; without it the result has only coarse paths.
+    pub refine: Option<RefineModel>,
+    /// Their configuration (crop size, paths per call).
+    pub config: ModelConfig,
+    /// How many of its paths E_c keeps visible per region on average (from its training), used
+    /// to choose the number of superpixels for a path budget.
+    pub visible_per_region: f32,
+}
+
+impl Models {
+    /// Loads E_c from `coarse` and, if given, E_r from `refine` (both must share a configuration).
+    pub fn load(coarse: &Path, refine: Option<&Path>, device: &Device) -> Result<Self, CheckpointError> {
+        let checkpoint = Checkpoint::load(coarse)?;
+        checkpoint.expect_stage(Stage::Coarse, coarse)?;
+        let config = checkpoint.model_config.clone();
+        let visible_per_region = checkpoint
+            .training
+            .as_deref()
+            .and_then(|json| serde_json::from_str::<serde_json::Value>(json).ok())
+            .and_then(|state| state["recent"]["visible_paths"].as_f64())
+            .map_or(config.paths as f32, |v| v as f32)
+            .clamp(1.0, config.paths as f32);
+        let coarse_model = checkpoint.apply(CoarseModel::new(&config, device), coarse)?;
+        let refine = match refine {
+            None => None,
+            Some(path) => {
+                let checkpoint = Checkpoint::load(path)?;
+                checkpoint.expect_stage(Stage::Refine, path)?;
+                if checkpoint.model_config != config {
+                    return Err(CheckpointError::Mismatch {
+                        path: path.to_path_buf(),
+                        message: format!("its model configuration differs from {}'s", coarse.display()),
+                    });
+                }
+                Some(checkpoint.apply(RefineModel::new(&config, device), path)?)
+            }
+        };
+        Ok(Self { coarse: coarse_model, refine, config, visible_per_region })
+    }
+}
+
+/// Environment variable naming a folder with `coarse.ckpt` and `refine.ckpt`.
+pub const MODELS_ENV: &str = "SUPERSVG_MODELS";
+
+/// The bundled checkpoint `name` (`coarse.ckpt` or `refine.ckpt`): in `$SUPERSVG_MODELS`, in a
+/// `models/` folder next to the executable or up to three levels above it (a cargo build
+/// inside the repository), or in the source tree this program was built from.
+pub fn bundled(name: &str) -> Result<PathBuf, String> {
+    let mut places: Vec<PathBuf> = Vec::new();
+    if let Some(dir) = std::env::var_os(MODELS_ENV) {
+        places.push(PathBuf::from(dir));
+    }
+    if let Ok(exe) = std::env::current_exe() {
+        places.extend(exe.ancestors().skip(1).take(4).map(|dir| dir.join("models")));
+    }
+    places.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models"));
+    places.iter().map(|dir| dir.join(name)).find(|path| path.is_file()).ok_or_else(|| {
+        let looked: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
+        format!(
+            "no bundled {name} (looked in {}); pass it explicitly or set {MODELS_ENV} to its folder",
+            looked.join(", ")
+        )
+    })
+}

@@ -1,0 +1,249 @@
+//! Other ways to vectorize an image, for comparison: vtracer, potrace on colour layers, and
+//! filling superpixels with their mean colour. Plus SVG rendering and path counting that treat
+//! every method alike.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+use image::{Rgb, Rgb32FImage};
+use superpixel::{SlicOptions, slic};
+
+/// An SVG made by some method, and the seconds it took.
+pub struct Traced {
+    /// The document.
+    pub svg: String,
+    /// Wall time of the method.
+    pub seconds: f64,
+}
+
+/// Renders an SVG document with resvg onto `width × height` (the document is scaled to fit),
+/// over white.
+pub fn render_svg(svg: &str, width: u32, height: u32) -> Result<Rgb32FImage, String> {
+    let tree =
+        resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default()).map_err(|err| err.to_string())?;
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).ok_or("empty canvas")?;
+    pixmap.fill(resvg::tiny_skia::Color::WHITE);
+    let size = tree.size();
+    let scale =
+        resvg::tiny_skia::Transform::from_scale(width as f32 / size.width(), height as f32 / size.height());
+    resvg::render(&tree, scale, &mut pixmap.as_mut());
+    Ok(Rgb32FImage::from_fn(width, height, |x, y| {
+        let p = pixmap.pixel(x, y).expect("inside the canvas").demultiply();
+        Rgb([p.red() as f32 / 255.0, p.green() as f32 / 255.0, p.blue() as f32 / 255.0])
+    }))
+}
+
+/// Number of closed shapes an SVG draws: the subpaths (moveto commands) of all `d` attributes,
+/// so a compound path with holes counts each outline — the same unit for every method.
+pub fn count_shapes(svg: &str) -> usize {
+    svg.split(" d=\"")
+        .skip(1)
+        .map(|rest| rest.split('"').next().unwrap_or("").chars().filter(|c| matches!(c, 'M' | 'm')).count())
+        .sum()
+}
+
+/// Whether an external program can be run.
+pub fn available(program: &str) -> bool {
+    Command::new(program).arg("--help").output().is_ok()
+}
+
+/// vtracer (colour, stacked, spline) on a PNG. With a shape budget, one knob is searched for
+/// at most `shapes` shapes and as many as possible: knob k sets the speckle filter to
+/// min(16, 4 + k) px and, past that, the colour gradient step to 16 + (k − 12) (fewer layers);
+/// `None` keeps vtracer's defaults (speckle 4, gradient step 16).
+pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Traced, String> {
+    let run = |knob: usize| -> Result<Traced, String> {
+        let speckle = (4 + knob).min(16);
+        let gradient = (16 + knob.saturating_sub(12)).min(255);
+        let out = scratch.join(format!("vtracer-{knob}.svg"));
+        let started = Instant::now();
+        let status = Command::new("vtracer")
+            .args(["--input", &png.to_string_lossy(), "--output", &out.to_string_lossy()])
+            .args(["--filter_speckle", &speckle.to_string(), "--gradient_step", &gradient.to_string()])
+            .output()
+            .map_err(|err| err.to_string())?;
+        let seconds = started.elapsed().as_secs_f64();
+        if !status.status.success() {
+            return Err(String::from_utf8_lossy(&status.stderr).into_owned());
+        }
+        let svg = std::fs::read_to_string(&out).map_err(|err| err.to_string())?;
+        Ok(Traced { svg, seconds })
+    };
+    match shapes {
+        None => run(0),
+        Some(target) => search(target, run, 0, 251),
+    }
+}
+
+/// potrace on colour layers: the image quantized to `colors` colours (k-means in RGB), layers
+/// painted from the most to the least frequent colour, each layer's bitmap being its colour and
+/// every colour painted after it (so layers stack without gaps), each traced with potrace. The
+/// speck size is searched for at most `shapes` shapes.
+pub fn potrace_colors(
+    image: &Rgb32FImage,
+    colors: usize,
+    shapes: Option<usize>,
+    scratch: &Path,
+) -> Result<Traced, String> {
+    let started = Instant::now();
+    let (palette, labels) = quantize(image, colors);
+    let quantize_seconds = started.elapsed().as_secs_f64();
+    let mut order: Vec<usize> = (0..palette.len()).collect();
+    let counts: Vec<usize> = (0..palette.len()).map(|k| labels.iter().filter(|&&l| l == k).count()).collect();
+    order.sort_by(|a, b| counts[*b].cmp(&counts[*a]));
+    let rank: Vec<usize> = {
+        let mut rank = vec![0; palette.len()];
+        order.iter().enumerate().for_each(|(r, &k)| rank[k] = r);
+        rank
+    };
+    let (width, height) = image.dimensions();
+    let run = |turd: usize| -> Result<Traced, String> {
+        let started = Instant::now();
+        let mut body = String::new();
+        for (layer, &k) in order.iter().enumerate() {
+            let pbm = scratch.join(format!("layer-{layer}.pbm"));
+            let mut bits = format!("P1\n{width} {height}\n").into_bytes();
+            for (i, &label) in labels.iter().enumerate() {
+                bits.extend_from_slice(if rank[label] >= layer { b"1 " } else { b"0 " });
+                if (i + 1) % width as usize == 0 {
+                    bits.push(b'\n');
+                }
+            }
+            std::fs::write(&pbm, bits).map_err(|err| err.to_string())?;
+            let out = Command::new("potrace")
+                .args(["-b", "svg", "-t", &turd.to_string(), "-o", "-"])
+                .arg(&pbm)
+                .output()
+                .map_err(|err| err.to_string())?;
+            if !out.status.success() {
+                return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+            }
+            let svg = String::from_utf8_lossy(&out.stdout);
+            let [r, g, b] = palette[k].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+            if let Some(group) = svg.split("<g ").nth(1).and_then(|g| g.split("</g>").next()) {
+                let group = group.replace("fill=\"#000000\"", &format!("fill=\"#{r:02x}{g:02x}{b:02x}\""));
+                body.push_str(&format!("<g {group}</g>\n"));
+            }
+        }
+        let svg = format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" viewBox=\"0 0 {width} {height}\">\n{body}</svg>\n"
+        );
+        Ok(Traced { svg, seconds: quantize_seconds + started.elapsed().as_secs_f64() })
+    };
+    match shapes {
+        None => run(2),
+        Some(target) => search(target, run, 0, 4096),
+    }
+}
+
+/// Every superpixel of a SLIC segmentation into `regions` regions, filled with its mean colour:
+/// the baseline a region-based vectorizer must beat.
+pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FImage, usize, f64) {
+    let started = Instant::now();
+    let options = SlicOptions {
+        n_segments: regions.clamp(1, (image.width() * image.height()) as usize),
+        ..Default::default()
+    };
+    let segmentation = slic(image, &options).expect("valid image and region count");
+    let filled = Rgb32FImage::from_fn(image.width(), image.height(), |x, y| {
+        Rgb(segmentation.regions[segmentation.label(x, y) as usize].mean_color)
+    });
+    (filled, segmentation.regions.len(), started.elapsed().as_secs_f64())
+}
+
+/// The result of `run` with the most shapes not above `target`, over knob values `low..=high`
+/// (a larger knob gives fewer shapes), by bisection in at most 8 runs; the fewest shapes seen if
+/// nothing fits.
+fn search(
+    target: usize,
+    run: impl Fn(usize) -> Result<Traced, String>,
+    low: usize,
+    high: usize,
+) -> Result<Traced, String> {
+    let (mut low, mut high) = (low, high);
+    let mut fitting: Option<(usize, Traced)> = None;
+    let mut fewest: Option<(usize, Traced)> = None;
+    for _ in 0..8 {
+        let knob = (low + high) / 2;
+        let traced = run(knob)?;
+        let shapes = count_shapes(&traced.svg);
+        if shapes <= target {
+            if fitting.as_ref().is_none_or(|(best, _)| shapes > *best) {
+                fitting = Some((shapes, traced));
+            }
+            if knob == low {
+                break;
+            }
+            high = knob - 1;
+        } else {
+            if fewest.as_ref().is_none_or(|(best, _)| shapes < *best) {
+                fewest = Some((shapes, traced));
+            }
+            if knob == high {
+                break;
+            }
+            low = knob + 1;
+        }
+    }
+    fitting.or(fewest).map(|(_, traced)| traced).ok_or_else(|| "no run".into())
+}
+
+/// k-means in RGB (10 rounds, centres started at luminance quantiles): palette and labels.
+fn quantize(image: &Rgb32FImage, k: usize) -> (Vec<[f32; 3]>, Vec<usize>) {
+    let pixels: Vec<[f32; 3]> = image.pixels().map(|p| p.0).collect();
+    let mut sorted = pixels.clone();
+    sorted.sort_by(|a, b| (a[0] + a[1] + a[2]).total_cmp(&(b[0] + b[1] + b[2])));
+    let k = k.clamp(1, pixels.len());
+    let mut centers: Vec<[f32; 3]> = (0..k).map(|i| sorted[(2 * i + 1) * sorted.len() / (2 * k)]).collect();
+    let mut labels = vec![0; pixels.len()];
+    for _ in 0..10 {
+        for (label, p) in labels.iter_mut().zip(&pixels) {
+            let distance = |c: &[f32; 3]| (0..3).map(|i| (p[i] - c[i]).powi(2)).sum::<f32>();
+            *label = (0..k).min_by(|a, b| distance(&centers[*a]).total_cmp(&distance(&centers[*b]))).unwrap();
+        }
+        let mut sums = vec![[0.0f64; 4]; k];
+        for (label, p) in labels.iter().zip(&pixels) {
+            (0..3).for_each(|i| sums[*label][i] += p[i] as f64);
+            sums[*label][3] += 1.0;
+        }
+        for (center, sum) in centers.iter_mut().zip(&sums) {
+            if sum[3] > 0.0 {
+                *center = [0, 1, 2].map(|i| (sum[i] / sum[3]) as f32);
+            }
+        }
+    }
+    (centers, labels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shapes_are_counted_per_subpath() {
+        let svg = r#"<svg><path d="M0 0L1 1Z"/><path d="M0 0L1 0Z m5 5l1 1z"/><rect/></svg>"#;
+        assert_eq!(count_shapes(svg), 3);
+    }
+
+    #[test]
+    fn rendering_an_svg_fills_its_canvas() {
+        let svg = r##"<svg xmlns="http://www.w3.org/2000/svg" width="10" height="10" viewBox="0 0 10 10"><rect x="0" y="0" width="5" height="10" fill="#ff0000"/></svg>"##;
+        let image = render_svg(svg, 20, 20).unwrap();
+        assert_eq!(image.get_pixel(2, 10).0, [1.0, 0.0, 0.0]);
+        assert_eq!(image.get_pixel(15, 10).0, [1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn mean_colour_baseline_is_exact_on_flat_regions() {
+        let image =
+            Rgb32FImage::from_fn(
+                40,
+                20,
+                |x, _| if x < 20 { Rgb([1.0, 0.0, 0.0]) } else { Rgb([0.0, 0.0, 1.0]) },
+            );
+        let (filled, regions, _) = mean_color_superpixels(&image, 2);
+        assert!(regions >= 2);
+        assert!(crate::metrics::psnr(&filled, &image) > 20.0);
+    }
+}
