@@ -7,7 +7,9 @@ use burn::nn::transformer::{
     TransformerEncoderInput,
 };
 use burn::nn::{Initializer, LayerNorm, LayerNormConfig, Linear, LinearConfig};
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{Device, Int, Tensor, TensorData};
+
+use crate::prior::cell_center;
 
 use crate::config::ModelConfig;
 
@@ -15,6 +17,12 @@ use crate::config::ModelConfig;
 /// image tokens, `softmax(W_Q T_l (W_K T_f)ᵀ / √d) W_V T_f`, then a GELU MLP, both pre-norm with
 /// residuals), then one self-attention block among the queries (pre-norm, GELU MLP), then a
 /// LayerNorm. One query per path; the query width is `query_dim`.
+///
+/// Each query is anchored: before attending, it is added the (projected) image token under its
+/// path's starting cell ([`cell_center`], the cell [`crate::prior::grid_prior`] starts the
+/// path in). Every path then sees its own part of the image from the first step, instead of
+/// all queries reading the same near-uniform attention and predicting the same colour until
+/// attention has learned to be spatial.
 #[derive(Module, Debug)]
 pub struct PathDecoder {
     queries: Param<Tensor<2>>,
@@ -58,10 +66,12 @@ impl PathDecoder {
 
     /// `[B, tokens, embed_dim]` image features to `[B, paths, query_dim]` path features.
     pub fn forward(&self, tokens: Tensor<3>) -> Tensor<3> {
-        let [batch, _, _] = tokens.dims();
+        let [batch, tokens_count, _] = tokens.dims();
         let [paths, dim] = self.queries.dims();
         let memory = self.memory_norm.forward(self.memory.forward(tokens));
-        let queries = self.queries.val().unsqueeze::<3>().expand([batch, paths, dim]);
+        let anchors = anchor_tokens(paths, tokens_count, &memory.device());
+        let queries = self.queries.val().unsqueeze::<3>().expand([batch, paths, dim])
+            + memory.clone().select(1, anchors);
         let attended = self
             .cross_attention
             .forward(MhaInput::new(self.query_norm.forward(queries.clone()), memory.clone(), memory))
@@ -71,4 +81,17 @@ impl PathDecoder {
         let x = self.self_attention.forward(TransformerEncoderInput::new(x));
         self.norm.forward(x)
     }
+}
+
+/// The token under each path's starting cell, for a square grid of `tokens` patches.
+fn anchor_tokens(paths: usize, tokens: usize, device: &Device) -> Tensor<1, Int> {
+    let side = (tokens as f32).sqrt().round() as usize;
+    let indices: Vec<i64> = (0..paths)
+        .map(|path| {
+            let [x, y] = cell_center(path, paths);
+            let (column, row) = ((x * side as f32) as usize, (y * side as f32) as usize);
+            (row.min(side - 1) * side + column.min(side - 1)) as i64
+        })
+        .collect();
+    Tensor::from_data(TensorData::new(indices, [paths]), device)
 }

@@ -9,6 +9,7 @@ mod checkpoint;
 mod coarse;
 mod config;
 mod decoder;
+mod prior;
 mod refine;
 mod vit;
 

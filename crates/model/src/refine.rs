@@ -1,6 +1,6 @@
 //! E_r: the target and the current canvas to m more paths.
 
-use burn::module::Module;
+use burn::module::{Module, Param};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{Linear, LinearConfig, PaddingConfig2d, Relu};
 use burn::tensor::activation::sigmoid;
@@ -10,12 +10,14 @@ use raster::{PARAMS_OPAQUE, PathBatch};
 use crate::coarse::CoarseModel;
 use crate::config::ModelConfig;
 use crate::decoder::PathDecoder;
+use crate::prior::{grid_prior, small_head};
 use crate::vit::VitEncoder;
 
 /// The refinement model: three 3×3 convolutions fuse (target, canvas) into a 3-channel image of
 /// the input size (ReLU between them; the last is linear so the fused image is signed like the
 /// coarse model's −1-filled input), then the same ViT and decoder as E_c, then a linear head to
-/// `refine_paths` paths of 27 parameters through a sigmoid. Refinement paths are always visible.
+/// `refine_paths` paths of 27 parameters (plus the [`grid_prior`] offsets) through a sigmoid.
+/// Refinement paths are always visible.
 #[derive(Module, Debug)]
 pub struct RefineModel {
     fusion: [Conv2d; 3],
@@ -23,6 +25,7 @@ pub struct RefineModel {
     encoder: VitEncoder,
     decoder: PathDecoder,
     head: Linear,
+    prior: Param<Tensor<2>>,
 }
 
 impl RefineModel {
@@ -37,7 +40,10 @@ impl RefineModel {
             activation: Relu::new(),
             encoder: VitEncoder::new(config, device),
             decoder: PathDecoder::new(config, config.refine_paths, device),
-            head: LinearConfig::new(config.query_dim, PARAMS_OPAQUE).init(device),
+            head: LinearConfig::new(config.query_dim, PARAMS_OPAQUE)
+                .with_initializer(small_head())
+                .init(device),
+            prior: grid_prior(config.refine_paths, PARAMS_OPAQUE, device),
         }
     }
 
@@ -58,7 +64,7 @@ impl RefineModel {
         let x = self.activation.forward(second.forward(x));
         let fused = last.forward(x);
         let features = self.decoder.forward(self.encoder.forward(fused));
-        PathBatch::opaque(sigmoid(self.head.forward(features)))
+        PathBatch::opaque(sigmoid(self.head.forward(features) + self.prior.val().unsqueeze()))
     }
 
     /// Paths added per call (m).
