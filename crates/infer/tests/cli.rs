@@ -1,0 +1,212 @@
+//! `infer` end to end with small untrained models: budgets, determinism, sizes, bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use burn::tensor::{DType, Device};
+use image::{Rgb, RgbImage, Rgba, RgbaImage};
+use model::{Checkpoint, CoarseModel, ModelConfig, Preset, RefineModel, Stage};
+
+const INFER: &str = env!("CARGO_BIN_EXE_infer");
+
+/// A scratch folder with a tiny coarse and refinement checkpoint and a few images.
+struct Fixture {
+    dir: PathBuf,
+}
+
+impl Fixture {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("supersvg-infer-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let config = ModelConfig {
+            input_size: 32,
+            embed_dim: 32,
+            depth: 1,
+            heads: 2,
+            paths: 8,
+            query_dim: 16,
+            query_heads: 2,
+            ..ModelConfig::preset(Preset::Cpu)
+        };
+        let device = Device::flex();
+        device.seed(1);
+        Checkpoint::of_model(Stage::Coarse, &config, &CoarseModel::new(&config, &device), DType::F16)
+            .save(&dir.join("coarse.ckpt"))
+            .unwrap();
+        Checkpoint::of_model(Stage::Refine, &config, &RefineModel::new(&config, &device), DType::F16)
+            .save(&dir.join("refine.ckpt"))
+            .unwrap();
+        let photo =
+            RgbImage::from_fn(96, 64, |x, y| Rgb([(x * 2) as u8, (y * 3) as u8, ((x + y) % 200) as u8]));
+        photo.save(dir.join("photo.png")).unwrap();
+        Self { dir }
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+
+    fn infer(&self, args: &[&str]) -> Output {
+        Command::new(INFER)
+            .args(args)
+            .args([
+                "--coarse",
+                self.path("coarse.ckpt").to_str().unwrap(),
+                "--refine",
+                self.path("refine.ckpt").to_str().unwrap(),
+            ])
+            .output()
+            .unwrap()
+    }
+}
+
+impl Drop for Fixture {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn parse_svg(path: &Path) -> resvg::usvg::Tree {
+    let svg = std::fs::read_to_string(path).unwrap();
+    resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default()).expect("valid SVG")
+}
+
+#[test]
+fn meets_the_path_budget_exactly_and_keeps_the_input_size() {
+    let fixture = Fixture::new("budget");
+    for budget in [3usize, 40, 100] {
+        let out = fixture.path(&format!("photo-{budget}.svg"));
+        let metrics = fixture.path("metrics.json");
+        let result = fixture.infer(&[
+            fixture.path("photo.png").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--paths",
+            &budget.to_string(),
+            "--metrics",
+            metrics.to_str().unwrap(),
+        ]);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        let svg = std::fs::read_to_string(&out).unwrap();
+        assert_eq!(svg.matches("<path").count(), budget, "budget {budget}");
+        assert!(svg.contains("viewBox=\"0 0 96 64\""));
+        assert_eq!(parse_svg(&out).size().width(), 96.0);
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+        assert_eq!(report["paths"], budget);
+        assert!(report["psnr"].as_f64().unwrap() > 0.0);
+        assert!(report["seconds"]["total"].as_f64().unwrap() > 0.0);
+    }
+}
+
+#[test]
+fn same_seed_same_svg() {
+    let fixture = Fixture::new("determinism");
+    let run = |name: &str| {
+        let out = fixture.path(name);
+        let result = fixture.infer(&[
+            fixture.path("photo.png").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--paths",
+            "30",
+            "--seed",
+            "7",
+        ]);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        std::fs::read(out).unwrap()
+    };
+    assert_eq!(run("a.svg"), run("b.svg"));
+}
+
+#[test]
+fn tiny_transparent_and_very_large_images() {
+    let fixture = Fixture::new("sizes");
+    RgbImage::from_pixel(1, 1, Rgb([200, 10, 10])).save(fixture.path("dot.png")).unwrap();
+    RgbaImage::from_fn(40, 30, |x, _| Rgba([0, 0, 255, if x < 20 { 0 } else { 255 }]))
+        .save(fixture.path("alpha.png"))
+        .unwrap();
+    // 12000 × 9000 (108 Mpx): streamed row by row, never decoded whole.
+    let big = fixture.path("big.png");
+    let file = std::io::BufWriter::new(std::fs::File::create(&big).unwrap());
+    let mut encoder = png::Encoder::new(file, 12000, 9000);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_compression(png::Compression::Fastest);
+    let mut writer = encoder.write_header().unwrap().into_stream_writer().unwrap();
+    let row: Vec<u8> = (0..12000).flat_map(|x| if x < 6000 { [250, 250, 0] } else { [0, 0, 250] }).collect();
+    for _ in 0..9000 {
+        std::io::Write::write_all(&mut writer, &row).unwrap();
+    }
+    writer.finish().unwrap();
+
+    let out = fixture.path("out");
+    let inputs = ["dot.png", "alpha.png", "big.png"].map(|name| fixture.path(name));
+    let mut args: Vec<&str> = inputs.iter().map(|p| p.to_str().unwrap()).collect();
+    args.extend(["-o", out.to_str().unwrap(), "--paths", "20"]);
+    let result = fixture.infer(&args);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    assert!(parse_svg(&out.join("dot.svg")).size().width() == 1.0);
+    assert!(std::fs::read_to_string(out.join("big.svg")).unwrap().contains("viewBox=\"0 0 12000 9000\""));
+    parse_svg(&out.join("alpha.svg"));
+}
+
+#[test]
+fn bad_inputs_fail_alone_with_clear_messages_and_no_partial_files() {
+    let fixture = Fixture::new("bad");
+    std::fs::write(fixture.path("empty.png"), b"").unwrap();
+    std::fs::write(fixture.path("text.jpg"), b"this is not a jpeg").unwrap();
+    let png = std::fs::read(fixture.path("photo.png")).unwrap();
+    std::fs::write(fixture.path("truncated.png"), &png[..png.len() / 2]).unwrap();
+    let out = fixture.path("out");
+    let names = ["empty.png", "text.jpg", "truncated.png", "missing.png", "photo.png"];
+    let inputs: Vec<PathBuf> = names.iter().map(|n| fixture.path(n)).collect();
+    let mut args: Vec<&str> = inputs.iter().map(|p| p.to_str().unwrap()).collect();
+    args.extend(["-o", out.to_str().unwrap(), "--paths", "10"]);
+    let result = fixture.infer(&args);
+    assert_eq!(result.status.code(), Some(1));
+    let stderr = text(&result.stderr);
+    for name in &names[..4] {
+        assert!(stderr.contains(name), "no error names {name}: {stderr}");
+        assert!(!out.join(Path::new(name).with_extension("svg")).exists(), "partial output for {name}");
+    }
+    assert!(stderr.contains("4 of 5 inputs failed"), "{stderr}");
+    assert!(out.join("photo.svg").exists(), "the good input is still converted");
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty());
+}
+
+#[test]
+fn model_and_output_problems_are_reported() {
+    let fixture = Fixture::new("models");
+    let photo = fixture.path("photo.png");
+    let out = fixture.path("photo.svg");
+    let run = |extra: &[&str]| {
+        Command::new(INFER).arg(&photo).args(["-o", out.to_str().unwrap()]).args(extra).output().unwrap()
+    };
+    let missing = fixture.path("nowhere.ckpt");
+    let result = run(&["--coarse", missing.to_str().unwrap(), "--no-refine"]);
+    assert_eq!(result.status.code(), Some(1));
+    assert!(text(&result.stderr).contains("nowhere.ckpt"));
+    let refine = fixture.path("refine.ckpt");
+    let result = run(&["--coarse", refine.to_str().unwrap(), "--no-refine"]);
+    assert!(text(&result.stderr).contains("a coarse checkpoint is needed"), "{}", text(&result.stderr));
+
+    let unwritable = fixture.path("no/such/folder/photo.svg");
+    let coarse = fixture.path("coarse.ckpt");
+    let result = Command::new(INFER)
+        .arg(&photo)
+        .args(["-o", unwritable.to_str().unwrap(), "--coarse", coarse.to_str().unwrap(), "--no-refine"])
+        .output()
+        .unwrap();
+    assert_eq!(result.status.code(), Some(1));
+    assert!(text(&result.stderr).contains("no/such/folder/photo.svg"), "{}", text(&result.stderr));
+}
