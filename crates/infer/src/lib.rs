@@ -4,6 +4,7 @@
 
 pub mod decode;
 pub mod finetune;
+pub mod lpips;
 pub mod metrics;
 pub mod models;
 pub mod peers;

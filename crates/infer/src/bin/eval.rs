@@ -3,7 +3,8 @@
 //! `eval DIR --paths 500,2000,4000 [--finetune-secs 10] --out report.md`
 //!
 //! Every SVG is rendered with resvg, independently of the project's renderers, at the working
-//! resolution, and compared with the input scaled to it. Writes a markdown report and a contact
+//! resolution, and compared with the input scaled to it (MSE, PSNR, SSIM, and LPIPS when
+//! `scripts/fetch-lpips.sh` has provided its weights). Writes a markdown report and a contact
 //! sheet (input | each method) next to it.
 
 use std::collections::BTreeMap;
@@ -16,6 +17,7 @@ use clap::Parser;
 use image::{Rgb32FImage, RgbImage};
 use infer::decode::load;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
+use infer::lpips::Lpips;
 use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
 use infer::peers::{available, count_shapes, mean_color_superpixels, potrace_colors, render_svg, vtracer};
@@ -64,6 +66,7 @@ struct Row {
     mse: f64,
     psnr: f64,
     ssim: f64,
+    lpips: Option<f64>,
     seconds: f64,
 }
 
@@ -104,7 +107,13 @@ fn run(args: Args) -> Result<(), String> {
             notes.push(format!("{peer} is not installed: its rows are missing."));
         }
     }
-    notes.push("LPIPS: not computed (no LPIPS weights are available to this build).".into());
+    let lpips = match Lpips::load(&Lpips::default_folder(), &device) {
+        Ok(lpips) => Some(lpips),
+        Err(err) => {
+            notes.push(format!("LPIPS skipped: {err}."));
+            None
+        }
+    };
 
     // results[(budget, method)] = one row per image
     let mut results: BTreeMap<(usize, String), Vec<Row>> = BTreeMap::new();
@@ -134,6 +143,7 @@ fn run(args: Args) -> Result<(), String> {
                         mse: mse(&drawn, image),
                         psnr: psnr(&drawn, image),
                         ssim: ssim(&drawn, image).unwrap_or(f64::NAN),
+                        lpips: lpips.as_ref().map(|net| net.distance(&drawn, image)),
                         seconds,
                     };
                     if budget == args.paths[0] {
@@ -252,9 +262,14 @@ fn report(
         );
         for ((_, method), rows) in results.iter().filter(|((b, _), _)| *b == budget) {
             let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
+            let lpips = if rows.iter().all(|r| r.lpips.is_some()) {
+                format!("{:.4}", mean(&|r| r.lpips.unwrap_or(f64::NAN)))
+            } else {
+                "—".to_string()
+            };
             let _ = writeln!(
                 text,
-                "| {method} | {:.0} | {:.2} | {:.4} | {:.5} | — | {:.2} |",
+                "| {method} | {:.0} | {:.2} | {:.4} | {:.5} | {lpips} | {:.2} |",
                 mean(&|r| r.shapes as f64),
                 mean(&|r| r.psnr),
                 mean(&|r| r.ssim),
