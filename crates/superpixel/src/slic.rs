@@ -143,6 +143,29 @@ impl Segmentation {
     }
 }
 
+/// An image in CIELAB, one plane per channel (contiguous rows for the assignment loop).
+struct Lab {
+    l: Vec<f32>,
+    a: Vec<f32>,
+    b: Vec<f32>,
+}
+
+impl Lab {
+    fn of(red: &[f32], green: &[f32], blue: &[f32]) -> Self {
+        let lab: Vec<[f32; 3]> =
+            (red, green, blue).into_par_iter().map(|(&r, &g, &b)| srgb_to_lab([r, g, b])).collect();
+        Self {
+            l: lab.iter().map(|p| p[0]).collect(),
+            a: lab.iter().map(|p| p[1]).collect(),
+            b: lab.iter().map(|p| p[2]).collect(),
+        }
+    }
+
+    fn at(&self, i: usize) -> [f32; 3] {
+        [self.l[i], self.a[i], self.b[i]]
+    }
+}
+
 /// A cluster centre: colour in CIELAB and position in pixels.
 #[derive(Clone, Copy, Debug, Default)]
 struct Center {
@@ -154,9 +177,9 @@ struct Center {
 /// Segments `image` (RGB in [0, 1]) into about `options.n_segments` superpixels.
 ///
 /// Centres start on a regular grid of step `S = √(pixels / n_segments)`, each moved to the lowest
-/// CIELAB gradient of its 3×3 neighbourhood. Each round assigns every pixel to the centre within
-/// one grid cell (±S) minimizing `d_lab² + (d_xy / S)² · compactness²`, then moves every centre to
-/// the mean of its pixels. Deterministic; parallel over rows.
+/// CIELAB gradient of its 3×3 neighbourhood. Each round assigns every pixel to the centre, among
+/// those whose 2S × 2S window contains it, minimizing `d_lab² + (d_xy / S)² · compactness²`, then
+/// moves every centre to the mean of its pixels. Deterministic; parallel over bands of rows.
 pub fn slic(image: &Rgb32FImage, options: &SlicOptions) -> Result<Segmentation, SlicError> {
     let (width, height) = (image.width() as usize, image.height() as usize);
     let pixels = width * height;
@@ -173,29 +196,26 @@ pub fn slic(image: &Rgb32FImage, options: &SlicOptions) -> Result<Segmentation, 
         return Err(SlicError::BadOption("sigma must be zero or positive"));
     }
 
-    let rgb: Vec<[f32; 3]> = image.pixels().map(|p| p.0).collect();
-    let lab: Vec<[f32; 3]> =
-        gaussian_blur(&rgb, width, height, options.sigma).into_par_iter().map(srgb_to_lab).collect();
+    let planes: Vec<Vec<f32>> = (0..3)
+        .map(|c| {
+            let plane: Vec<f32> = image.pixels().map(|p| p.0[c]).collect();
+            gaussian_blur(&plane, width, height, options.sigma)
+        })
+        .collect();
+    let lab = Lab::of(&planes[0], &planes[1], &planes[2]);
     let grid = Grid::new(width, height, options.n_segments);
     let mut centers = grid.initial_centers(&lab);
     let spatial_weight = (options.compactness / grid.step).powi(2);
 
-    let mut labels = vec![u32::MAX; pixels];
+    // Every pixel starts in its grid cell's cluster, which is its own centre's initial cell.
+    let mut labels: Vec<u32> = (0..pixels)
+        .map(|i| {
+            let (column, row) = grid.cell((i % width) as f32 + 0.5, (i / width) as f32 + 0.5);
+            (row * grid.columns + column) as u32
+        })
+        .collect();
     for _ in 0..options.max_iterations.max(1) {
-        let buckets = grid.bucket(&centers);
-        let changed: usize = labels
-            .par_chunks_mut(width)
-            .enumerate()
-            .map(|(y, row)| {
-                let mut changed = 0;
-                for (x, label) in row.iter_mut().enumerate() {
-                    let nearest = grid.nearest(&buckets, &centers, lab[y * width + x], x, y, spatial_weight);
-                    changed += usize::from(*label != nearest);
-                    *label = nearest;
-                }
-                changed
-            })
-            .sum();
+        let changed = assign(&mut labels, &centers, &lab, width, grid.step, spatial_weight);
         update_centers(&mut centers, &labels, &lab, width);
         if changed == 0 {
             break;
@@ -211,15 +231,71 @@ pub fn slic(image: &Rgb32FImage, options: &SlicOptions) -> Result<Segmentation, 
     Ok(Segmentation::from_labels(image, labels, count))
 }
 
+/// Rows of pixels assigned by one task: tall enough to amortize scanning the centres, short
+/// enough that two threads share the work evenly.
+const BAND: usize = 16;
+
+/// One SLIC assignment round: every centre claims, within its 2S × 2S window, the pixels it is
+/// closer to (in `d_lab² + d_xy² · spatial_weight`) than any centre so far. Parallel over bands
+/// of rows, each band scanning only the centres whose window reaches it, so no two threads
+/// write the same pixel. Pixels no window reaches keep their label. Returns how many changed.
+fn assign(
+    labels: &mut [u32],
+    centers: &[Center],
+    lab: &Lab,
+    width: usize,
+    step: f32,
+    spatial_weight: f32,
+) -> usize {
+    labels
+        .par_chunks_mut(width * BAND)
+        .enumerate()
+        .map(|(band, chunk)| {
+            let top = band * BAND;
+            let bottom = top + chunk.len() / width;
+            let before = chunk.to_vec();
+            let mut best = vec![f32::INFINITY; chunk.len()];
+            for (index, center) in centers.iter().enumerate() {
+                let y0 = ((center.y - step).floor().max(top as f32)) as usize;
+                let y1 = ((center.y + step).ceil().max(0.0) as usize).min(bottom);
+                if y0 >= y1 {
+                    continue;
+                }
+                let x0 = (center.x - step).floor().max(0.0) as usize;
+                let x1 = ((center.x + step).ceil().max(0.0) as usize).min(width);
+                for y in y0..y1 {
+                    let dy = y as f32 + 0.5 - center.y;
+                    let row_cost = dy * dy * spatial_weight;
+                    let (pixel_row, local_row) = (y * width, (y - top) * width);
+                    for x in x0..x1 {
+                        let i = pixel_row + x;
+                        let (dl, da, db) =
+                            (lab.l[i] - center.lab[0], lab.a[i] - center.lab[1], lab.b[i] - center.lab[2]);
+                        let dx = x as f32 + 0.5 - center.x;
+                        let cost = dl * dl + da * da + db * db + dx * dx * spatial_weight + row_cost;
+                        let slot = local_row + x;
+                        if cost < best[slot] {
+                            best[slot] = cost;
+                            chunk[slot] = index as u32;
+                        }
+                    }
+                }
+            }
+            chunk.iter().zip(&before).filter(|(a, b)| a != b).count()
+        })
+        .sum()
+}
+
 /// Moves every centre to the mean colour and position of its pixels (empty ones stay put).
-fn update_centers(centers: &mut [Center], labels: &[u32], lab: &[[f32; 3]], width: usize) {
+fn update_centers(centers: &mut [Center], labels: &[u32], lab: &Lab, width: usize) {
     let zero = || vec![[0.0f64; 6]; centers.len()];
     let sums = labels
         .par_chunks(width)
         .enumerate()
         .fold(zero, |mut sums, (y, row)| {
             for (x, &label) in row.iter().enumerate() {
-                let [l, a, b] = lab[y * width + x];
+                let i = y * width + x;
+                let [l, a, b] = [lab.l[i], lab.a[i], lab.b[i]];
                 let s = &mut sums[label as usize];
                 for (acc, v) in s.iter_mut().zip([l, a, b, x as f32, y as f32, 1.0]) {
                     *acc += v as f64;
@@ -278,9 +354,9 @@ impl Grid {
 
     /// One centre per cell at its middle, moved to the lowest-gradient pixel of its 3×3
     /// neighbourhood so it does not start on an edge or a noisy pixel.
-    fn initial_centers(&self, lab: &[[f32; 3]]) -> Vec<Center> {
+    fn initial_centers(&self, lab: &Lab) -> Vec<Center> {
         let (w, h) = (self.width as isize, self.height as isize);
-        let at = |x: isize, y: isize| lab[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
+        let at = |x: isize, y: isize| lab.at((y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize);
         let distance = |a: [f32; 3], b: [f32; 3]| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f32>();
         let gradient =
             |x: isize, y: isize| distance(at(x + 1, y), at(x - 1, y)) + distance(at(x, y + 1), at(x, y - 1));
@@ -297,55 +373,5 @@ impl Grid {
                 Center { lab: at(bx, by), x: bx as f32 + 0.5, y: by as f32 + 0.5 }
             })
             .collect()
-    }
-
-    /// Centre indices per grid cell, by the centres' current positions.
-    fn bucket(&self, centers: &[Center]) -> Vec<Vec<u32>> {
-        let mut buckets = vec![Vec::new(); self.columns * self.rows];
-        for (index, center) in centers.iter().enumerate() {
-            let (column, row) = self.cell(center.x, center.y);
-            buckets[row * self.columns + column].push(index as u32);
-        }
-        buckets
-    }
-
-    /// The best centre for pixel (x, y): among the centres of the 3×3 cells around it, those
-    /// within one cell in each direction (the 2S × 2S window of SLIC); any of the 3×3 cells'
-    /// centres if none is that close; the nearest centre overall if those cells are empty.
-    fn nearest(
-        &self,
-        buckets: &[Vec<u32>],
-        centers: &[Center],
-        lab: [f32; 3],
-        x: usize,
-        y: usize,
-        spatial_weight: f32,
-    ) -> u32 {
-        let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
-        let (column, row) = self.cell(px, py);
-        let distance = |c: &Center| {
-            let color: f32 = (0..3).map(|i| (lab[i] - c.lab[i]).powi(2)).sum();
-            color + ((c.x - px).powi(2) + (c.y - py).powi(2)) * spatial_weight
-        };
-        let (mut in_window, mut nearby) = ((f32::INFINITY, None), (f32::INFINITY, None));
-        for r in row.saturating_sub(1)..=(row + 1).min(self.rows - 1) {
-            for c in column.saturating_sub(1)..=(column + 1).min(self.columns - 1) {
-                for &index in &buckets[r * self.columns + c] {
-                    let center = &centers[index as usize];
-                    let d = distance(center);
-                    let close =
-                        (center.x - px).abs() <= self.cell_width && (center.y - py).abs() <= self.cell_height;
-                    let slot = if close { &mut in_window } else { &mut nearby };
-                    if d < slot.0 {
-                        *slot = (d, Some(index));
-                    }
-                }
-            }
-        }
-        in_window.1.or(nearby.1).unwrap_or_else(|| {
-            (0..centers.len() as u32)
-                .min_by(|&a, &b| distance(&centers[a as usize]).total_cmp(&distance(&centers[b as usize])))
-                .expect("there is at least one centre")
-        })
     }
 }
