@@ -34,7 +34,8 @@ pub enum Stage {
 }
 
 impl Stage {
-    fn name(self) -> &'static str {
+    /// The stage's name as written in checkpoint files ("coarse", "refine").
+    pub fn name(self) -> &'static str {
         match self {
             Stage::Coarse => "coarse",
             Stage::Refine => "refine",
@@ -101,13 +102,17 @@ impl Checkpoint {
     /// ship smaller files; loading converts back to the model's dtype).
     pub fn of_model<M: Module>(stage: Stage, model_config: &ModelConfig, model: &M, dtype: DType) -> Self {
         let record = model.clone().into_record().into_bytes().expect("a record serializes to memory");
-        let entries = entries(&record)
-            .expect("a fresh record reads back")
-            .into_iter()
-            .map(|entry| Entry { data: entry.data.convert_dtype(dtype), ..entry })
-            .collect();
-        let model = pack(entries).expect("converted tensors serialize");
+        let model = convert(&record, dtype).expect("a fresh record converts");
         Self { stage, model_config: model_config.clone(), model, optimizer: None, training: None }
+    }
+
+    /// The same weights without the optimizer state, stored in `dtype`: what inference needs,
+    /// in a file a fraction of the size (F16 halves the weights; Adam's two moments go). The
+    /// trainer's state stays, so a shipped model still says how long it was trained.
+    pub fn for_inference(&self, dtype: DType, path: &Path) -> Result<Self, CheckpointError> {
+        let model = convert(&self.model, dtype)
+            .map_err(|message| CheckpointError::Format { path: path.to_path_buf(), message })?;
+        Ok(Self { model, optimizer: None, ..self.clone() })
     }
 
     /// Writes the checkpoint to `path` atomically.
@@ -236,6 +241,19 @@ fn pack(entries: Vec<Entry>) -> Result<Bytes, String> {
     Writer::new(entries.into_iter().map(Entry::into_pack).collect())
         .into_bytes()
         .map_err(|err| err.to_string())
+}
+
+/// `bytes` (a burnpack buffer) with every float tensor stored in `dtype`.
+fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, String> {
+    let entries = entries(bytes)?
+        .into_iter()
+        .map(|entry| {
+            let data =
+                if entry.data.dtype().is_float() { entry.data.convert_dtype(dtype) } else { entry.data };
+            Entry { data, ..entry }
+        })
+        .collect();
+    pack(entries)
 }
 
 /// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers.

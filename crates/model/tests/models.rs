@@ -129,6 +129,19 @@ fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
         .fold(0.0, f32::max);
     assert!(coords_gap < 0.01, "f16 weights moved outputs by {coords_gap}");
 
+    // Exporting a training checkpoint drops the optimizer, keeps the trainer's record and
+    // gives the same weights as converting the model directly.
+    let training = Checkpoint {
+        optimizer: Some(burn::tensor::Bytes::from_elems(vec![7u8; 64])),
+        training: Some("{\"step\":3}".into()),
+        ..Checkpoint::load(&path).unwrap()
+    };
+    let exported = training.for_inference(DType::F16, &path).unwrap();
+    assert!(exported.optimizer.is_none());
+    assert_eq!(exported.training.as_deref(), Some("{\"step\":3}"));
+    let direct = Checkpoint::load(&half).unwrap();
+    assert_eq!(exported.model.to_vec(), direct.model.to_vec());
+
     // Wrong stage, wrong shape, not a checkpoint, missing file.
     let err = load_refine(&path, &device).unwrap_err();
     assert!(matches!(err, CheckpointError::WrongStage { .. }), "{err}");

@@ -1,0 +1,60 @@
+//! `export-model`: turns a training checkpoint into the file `infer` ships with.
+//!
+//! `export-model runs/coarse/coarse.ckpt models/coarse.ckpt [--dtype f16|f32]`
+//!
+//! Drops the optimizer state and stores the weights in half precision by default; the model
+//! configuration, stage and the trainer's record (steps, seconds, final losses) are kept.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use burn::tensor::DType;
+use clap::{Parser, ValueEnum};
+use model::Checkpoint;
+
+/// Export a training checkpoint for inference.
+#[derive(Parser, Debug)]
+#[command(name = "export-model", version)]
+struct Args {
+    /// A checkpoint written by train-coarse or train-refine.
+    input: PathBuf,
+    /// Where to write the inference checkpoint (atomically).
+    output: PathBuf,
+    /// Precision of the stored weights.
+    #[arg(long, value_enum, default_value = "f16")]
+    dtype: Precision,
+}
+
+/// Storage precision of exported weights.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Precision {
+    F16,
+    F32,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let dtype = match args.dtype {
+        Precision::F16 => DType::F16,
+        Precision::F32 => DType::F32,
+    };
+    let exported = Checkpoint::load(&args.input)
+        .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
+        .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint));
+    match exported {
+        Ok(checkpoint) => {
+            let bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+            println!(
+                "{}: {} model, {:.1} MB",
+                args.output.display(),
+                checkpoint.stage.name(),
+                bytes as f64 / 1e6
+            );
+            ExitCode::SUCCESS
+        }
+        Err(err) => {
+            eprintln!("export-model: {err}");
+            ExitCode::FAILURE
+        }
+    }
+}
