@@ -120,7 +120,10 @@ impl Objective for RefineObjective {
                 let allowed =
                     split.second_part(&device).reshape([batch, 1, count]).bool().expand([batch, m, count]);
                 let masked = distances.mask_fill(allowed.bool_not(), f32::INFINITY);
-                dpw(masked, self.loss.gamma).mean()
+                // A sample whose teacher drew nothing visible has no target: every alignment is
+                // impossible, so it is left out of the mean instead of adding a huge constant.
+                let has_targets = split.has_targets(&device);
+                (dpw(masked, self.loss.gamma) * has_targets.clone()).sum() / has_targets.sum().clamp_min(1.0)
             }
             Guidance::L2 => {
                 let pairs = split.in_order_pairs(model.refine_paths(), &device);
@@ -180,6 +183,14 @@ impl Split {
     /// `[B, n]` flattened as `[B, n, 1]`: 1 for the visible paths after the split.
     fn second_part(&self, device: &Device) -> Tensor<3> {
         self.indicator(device, |rank, k| rank >= k)
+    }
+
+    /// `[B]`: 1 for samples with at least one visible path after the split.
+    fn has_targets(&self, device: &Device) -> Tensor<1> {
+        let values: Vec<f32> =
+            self.visible.iter().map(|row| if row.iter().any(|&v| v) { 1.0 } else { 0.0 }).collect();
+        let batch = values.len();
+        Tensor::from_data(TensorData::new(values, [batch]), device)
     }
 
     /// `[B, m, n]`: 1 where prediction i faces the i-th visible path after the split.
