@@ -60,15 +60,7 @@ mod tests {
 
     /// A square path from `lo` to `hi` (unit square), straight sides.
     fn square(lo: f32, hi: f32) -> Path {
-        let corners = [[lo, lo], [hi, lo], [hi, hi], [lo, hi]];
-        let mut points = [[0.0; 2]; 12];
-        for j in 0..4 {
-            let (a, b) = (corners[j], corners[(j + 1) % 4]);
-            for (m, t) in [0.0, 1.0 / 3.0, 2.0 / 3.0].into_iter().enumerate() {
-                points[3 * j + m] = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            }
-        }
-        Path { points, color: [0.3, 0.2, 0.1], alpha: 0.0 }
+        Path::quadrilateral([[lo, lo], [hi, lo], [hi, hi], [lo, hi]], [0.3, 0.2, 0.1], 0.0)
     }
 
     /// A 32×32 mask that is 1 on columns and rows 8..24.

@@ -117,8 +117,6 @@ fn unit_norm(x: Tensor<4>) -> Tensor<4> {
 
 #[cfg(test)]
 mod tests {
-    use image::Rgb;
-
     use super::*;
 
     /// Against the numpy implementation in scripts/fetch-lpips.sh, on the pair it uses; skipped
@@ -135,16 +133,7 @@ mod tests {
         };
         let reference: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(folder.join("reference.json")).unwrap()).unwrap();
-        let value = |x: u32, y: u32, c: u32| ((x * 7 + y * 3 + c * 5) % 11) as f64 / 10.0;
-        let a =
-            Rgb32FImage::from_fn(80, 64, |x, y| Rgb(std::array::from_fn(|c| value(x, y, c as u32) as f32)));
-        let b = Rgb32FImage::from_fn(80, 64, |x, y| {
-            Rgb(std::array::from_fn(|c| {
-                let v =
-                    value(x, y, c as u32) * 0.8 + 0.1 * (x as f64 * 0.7 + y as f64 * 0.3 + c as f64).sin();
-                v.clamp(0.0, 1.0) as f32
-            }))
-        });
+        let (a, b) = crate::metrics::test_pair(80, 64);
         let expected = reference["lpips"].as_f64().unwrap();
         let got = lpips.distance(&a, &b);
         assert!((got - expected).abs() < 1e-4 * expected.max(1.0), "{got} vs {expected}");

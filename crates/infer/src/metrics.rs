@@ -80,10 +80,27 @@ fn window_means(values: &[f64], width: usize, height: usize, weights: &[f64]) ->
     out
 }
 
+/// A fixed pair of test images, `width × height`: a pattern and a dimmed, wavy copy of it. The
+/// reference values of the metric tests (scikit-image, and numpy's LPIPS in
+/// scripts/fetch-lpips.sh) were computed on the same formula.
+#[cfg(test)]
+pub(crate) fn test_pair(width: u32, height: u32) -> (Rgb32FImage, Rgb32FImage) {
+    use image::Rgb;
+    let value = |x: u32, y: u32, c: u32| ((x * 7 + y * 3 + c * 5) % 11) as f64 / 10.0;
+    let a = Rgb32FImage::from_fn(width, height, |x, y| {
+        Rgb(std::array::from_fn(|c| value(x, y, c as u32) as f32))
+    });
+    let b = Rgb32FImage::from_fn(width, height, |x, y| {
+        Rgb(std::array::from_fn(|c| {
+            let v = value(x, y, c as u32) * 0.8 + 0.1 * (x as f64 * 0.7 + y as f64 * 0.3 + c as f64).sin();
+            v.clamp(0.0, 1.0) as f32
+        }))
+    });
+    (a, b)
+}
+
 #[cfg(test)]
 mod tests {
-    use image::Rgb;
-
     use super::*;
 
     /// The pair of images the reference values were computed on, with scikit-image 0.24:
@@ -91,17 +108,7 @@ mod tests {
     /// use_sample_covariance=False, data_range=1.0, channel_axis=2)` and
     /// `peak_signal_noise_ratio(a, b, data_range=1.0)`.
     fn pair() -> (Rgb32FImage, Rgb32FImage) {
-        let value = |x: u32, y: u32, c: u32| ((x * 7 + y * 3 + c * 5) % 11) as f64 / 10.0;
-        let a =
-            Rgb32FImage::from_fn(23, 17, |x, y| Rgb(std::array::from_fn(|c| value(x, y, c as u32) as f32)));
-        let b = Rgb32FImage::from_fn(23, 17, |x, y| {
-            Rgb(std::array::from_fn(|c| {
-                let v =
-                    value(x, y, c as u32) * 0.8 + 0.1 * (x as f64 * 0.7 + y as f64 * 0.3 + c as f64).sin();
-                v.clamp(0.0, 1.0) as f32
-            }))
-        });
-        (a, b)
+        test_pair(23, 17)
     }
 
     #[test]

@@ -264,15 +264,7 @@ mod tests {
     use super::*;
 
     fn square(lo: f32, hi: f32, color: [f32; 3]) -> Path {
-        let corners = [[lo, lo], [hi, lo], [hi, hi], [lo, hi]];
-        let mut points = [[0.0; 2]; 12];
-        for j in 0..4 {
-            let (a, b) = (corners[j], corners[(j + 1) % 4]);
-            for (m, t) in [0.0, 1.0 / 3.0, 2.0 / 3.0].into_iter().enumerate() {
-                points[3 * j + m] = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            }
-        }
-        Path { points, color, alpha: 1.0 }
+        Path::quadrilateral([[lo, lo], [hi, lo], [hi, hi], [lo, hi]], color, 1.0)
     }
 
     #[test]

@@ -38,6 +38,19 @@ pub struct Path {
 }
 
 impl Path {
+    /// A quadrilateral through `corners` (in order), each side a straight cubic: the shape tests
+    /// and masks reach for when they need edges that are exactly where they say.
+    pub fn quadrilateral(corners: [[f32; 2]; SEGMENTS], color: [f32; 3], alpha: f32) -> Self {
+        let mut points = [[0.0; 2]; POINTS];
+        for (j, a) in corners.into_iter().enumerate() {
+            let b = corners[(j + 1) % SEGMENTS];
+            for (k, t) in [0.0, 1.0 / 3.0, 2.0 / 3.0].into_iter().enumerate() {
+                points[3 * j + k] = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            }
+        }
+        Self { points, color, alpha }
+    }
+
     /// The control points of segment `j` (0..4): start, two handles, end.
     pub fn segment(&self, j: usize) -> [[f32; 2]; 4] {
         let p = |i: usize| self.points[i % POINTS];

@@ -89,17 +89,7 @@ mod tests {
     use super::*;
 
     fn square(alpha: f32) -> Path {
-        let corners = [[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]];
-        let mut points = [[0.0; 2]; 12];
-        for (j, corner) in corners.iter().enumerate() {
-            let next = corners[(j + 1) % 4];
-            let lerp =
-                |t: f32| [corner[0] + t * (next[0] - corner[0]), corner[1] + t * (next[1] - corner[1])];
-            points[3 * j] = *corner;
-            points[3 * j + 1] = lerp(1.0 / 3.0);
-            points[3 * j + 2] = lerp(2.0 / 3.0);
-        }
-        Path { points, color: [1.0, 0.5, 0.0], alpha }
+        Path::quadrilateral([[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]], [1.0, 0.5, 0.0], alpha)
     }
 
     #[test]
