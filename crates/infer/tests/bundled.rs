@@ -4,7 +4,7 @@ use std::process::Command;
 
 use infer::decode::load;
 use infer::metrics::psnr;
-use infer::peers::render_svg;
+use infer::peers::{mean_color_superpixels, render_svg};
 
 #[test]
 fn bundled_models_draw_the_example_image() {
@@ -25,13 +25,8 @@ fn bundled_models_draw_the_example_image() {
     let (width, height) = image.dimensions();
     let svg = std::fs::read_to_string(&output).unwrap();
     let drawn = render_svg(&svg, width, height).unwrap();
-    let mut mean = [0.0f64; 3];
-    for pixel in image.pixels() {
-        for (sum, value) in mean.iter_mut().zip(pixel.0) {
-            *sum += f64::from(value) / f64::from(width * height);
-        }
-    }
-    let flat = image::Rgb32FImage::from_pixel(width, height, image::Rgb(mean.map(|v| v as f32)));
+    let (flat, regions, _) = mean_color_superpixels(&image, 1);
+    assert_eq!(regions, 1);
     let (ours, baseline) = (psnr(&drawn, &image), psnr(&flat, &image));
     assert!(ours > baseline, "bundled models: {ours:.2} dB, flat mean colour: {baseline:.2} dB");
     assert_eq!(svg.matches("<path").count(), 200);
