@@ -227,8 +227,8 @@ fn flattening_matrix(k: usize, device: &Device) -> Tensor<2> {
 
 #[cfg(test)]
 mod tests {
-    use burn::tensor::{Distribution, Tensor};
-    use rand::SeedableRng;
+    use burn::tensor::Tensor;
+    use rand::{Rng, SeedableRng};
 
     use super::*;
     use crate::path::Path;
@@ -349,15 +349,17 @@ mod tests {
         let mut rectangle = polygon([[3.3, 4.6], [13.1, 4.6], [13.1, 11.7], [3.3, 11.7]], 16.0);
         rectangle.color = [0.8, 0.1, 0.5];
         for scene in [random_scene(&mut rng, 3), vec![rectangle]] {
-            check_gradient(scene);
+            check_gradient(scene, &mut rng);
         }
     }
 
-    fn check_gradient(scene: Vec<Path>) {
+    fn check_gradient(scene: Vec<Path>, rng: &mut impl Rng) {
         let size = 16;
         let device = Device::flex().autodiff();
         let base = PathBatch::from_scenes(&[scene], &device).into_params();
-        let weights = Tensor::<4>::random([1, 3, size, size], Distribution::Default, &device);
+        // Weights from the test's own seeded generator, so every run checks the same loss.
+        let weights: Vec<f32> = (0..3 * size * size).map(|_| rng.random()).collect();
+        let weights = Tensor::<4>::from_data(TensorData::new(weights, [1, 3, size, size]), &device);
         let options = SoftRasterOptions { background: [0.3, 0.6, 0.9], ..Default::default() };
         let loss = |params: Tensor<3>| {
             (render_soft(&PathBatch::new(params), size, size, &options) * weights.clone()).sum()
@@ -379,7 +381,15 @@ mod tests {
                 let t = Tensor::<3>::from_data(TensorData::new(v, base.dims()), &device);
                 loss(t).into_scalar::<f32>()
             };
-            let numeric = (shifted(h) - shifted(-h)) / (2.0 * h);
+            let (ahead, here, behind) = (shifted(h), shifted(0.0), shifted(-h));
+            let numeric = (ahead - behind) / (2.0 * h);
+            // The coverage is piecewise smooth (kinks where an edge crosses a pixel column or a
+            // subrow); where the one-sided slopes disagree, a kink lies within ±h and no finite
+            // difference can be compared with the derivative.
+            let (forward, backward) = ((ahead - here) / h, (here - behind) / h);
+            if (forward - backward).abs() > 0.05 * numeric.abs() {
+                continue;
+            }
             let relative = (numeric - grad).abs() / grad.abs();
             assert!(relative < 0.05, "param {index}: autodiff {grad}, finite differences {numeric}");
             checked += 1;
