@@ -18,17 +18,29 @@ use crate::path::{Path, SEGMENTS};
 pub fn render_exact(paths: &[Path], width: u32, height: u32, background: [f32; 3]) -> RgbImage {
     let mut pixmap = Pixmap::new(width, height).expect("render_exact needs a non-empty canvas");
     pixmap.fill(opaque(background));
-    let scale = Transform::from_scale(width as f32, height as f32);
     for path in paths {
-        let Some(outline) = skia_outline(path) else { continue };
-        let [r, g, b] = path.color.map(|c| c.clamp(0.0, 1.0));
-        let Some(color) = Color::from_rgba(r, g, b, path.alpha.clamp(0.0, 1.0)) else { continue };
-        let mut paint = Paint::default();
-        paint.set_color(color);
-        pixmap.fill_path(&outline, &paint, FillRule::Winding, scale, None);
+        paint_exact(&mut pixmap, path, (width, height), (0, 0));
     }
     let rgb = pixmap.data().chunks_exact(4).flat_map(|px| [px[0], px[1], px[2]]).collect();
     RgbImage::from_raw(width, height, rgb).expect("buffer matches the canvas")
+}
+
+/// Paints `path` (unit-square coordinates of a `canvas` = (width, height) image) over `pixmap`,
+/// which holds that image or the part of it whose top-left pixel is `origin`: painting a box
+/// of a canvas gives the pixels painting the whole canvas gives there. Returns false, painting
+/// nothing, for a path that cannot be drawn (α ≤ 0, a non-finite number).
+pub fn paint_exact(pixmap: &mut Pixmap, path: &Path, canvas: (u32, u32), origin: (u32, u32)) -> bool {
+    let Some(outline) = skia_outline(path) else { return false };
+    let [r, g, b] = path.color.map(|c| c.clamp(0.0, 1.0));
+    let Some(color) = Color::from_rgba(r, g, b, path.alpha.clamp(0.0, 1.0)) else { return false };
+    let mut paint = Paint::default();
+    paint.set_color(color);
+    // Scale first, then move by whole pixels: the same float coordinates as on the whole canvas,
+    // minus integers, so the rasterizer sees the same sub-pixel positions.
+    let transform = Transform::from_scale(canvas.0 as f32, canvas.1 as f32)
+        .post_translate(-(origin.0 as f32), -(origin.1 as f32));
+    pixmap.fill_path(&outline, &paint, FillRule::Winding, transform, None);
+    true
 }
 
 /// The closed outline of a drawable path in unit-square coordinates (scale it to the canvas with

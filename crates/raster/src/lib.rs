@@ -4,13 +4,17 @@
 
 pub mod device;
 mod exact;
+mod fit;
+mod geometry;
 mod path;
 mod shapes;
 mod soft;
 mod svg;
 
 pub use device::{Backend, BackendError};
-pub use exact::{render_exact, skia_outline};
+pub use exact::{paint_exact, render_exact, skia_outline};
+pub use fit::fit_outline;
+pub use geometry::{Bounds, bernstein, cubic_point};
 pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS};
 pub use shapes::{random_blob, random_scene};
 pub use soft::{SoftRasterOptions, coverage_soft, paint_soft, render_soft};

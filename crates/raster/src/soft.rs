@@ -36,6 +36,7 @@
 
 use burn::tensor::{Device, IndexingUpdateOp, Int, Tensor, TensorData};
 
+use crate::geometry::bernstein;
 use crate::path::{POINTS, PathBatch, SEGMENTS};
 
 /// Coordinates are clamped to this margin (in canvas widths) around the unit square before
@@ -213,10 +214,7 @@ fn flattening_matrix(k: usize, device: &Device) -> Tensor<2> {
     let mut matrix = vec![0.0f32; POINTS * columns];
     for segment in 0..SEGMENTS {
         for i in 0..k {
-            let t = i as f32 / k as f32;
-            let s = 1.0 - t;
-            let weights = [s * s * s, 3.0 * s * s * t, 3.0 * s * t * t, t * t * t];
-            for (m, weight) in weights.into_iter().enumerate() {
+            for (m, weight) in bernstein(i as f32 / k as f32).into_iter().enumerate() {
                 let row = (3 * segment + m) % POINTS;
                 matrix[row * columns + segment * k + i] += weight;
             }

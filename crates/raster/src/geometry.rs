@@ -1,0 +1,112 @@
+//! Geometry of paths on the CPU: evaluating and flattening the cubics, enclosed area, bounds.
+//!
+//! The one owner of Bézier evaluation: the soft rasterizer's flattening matrix, the area a path
+//! encloses and the fitting of outlines all take their weights from [`bernstein`].
+
+use crate::path::{Path, SEGMENTS};
+
+/// The cubic Bernstein weights at `t`: `[(1−t)³, 3(1−t)²t, 3(1−t)t², t³]`.
+pub fn bernstein(t: f32) -> [f32; 4] {
+    let s = 1.0 - t;
+    [s * s * s, 3.0 * s * s * t, 3.0 * s * t * t, t * t * t]
+}
+
+/// The point of the cubic with control points `control` at `t`.
+pub fn cubic_point(control: &[[f32; 2]; 4], t: f32) -> [f32; 2] {
+    let w = bernstein(t);
+    let mut point = [0.0; 2];
+    for (weight, p) in w.iter().zip(control) {
+        point[0] += weight * p[0];
+        point[1] += weight * p[1];
+    }
+    point
+}
+
+/// An axis-aligned rectangle in the unit square of a canvas, `[x0, x1] × [y0, y1]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Left edge.
+    pub x0: f32,
+    /// Top edge.
+    pub y0: f32,
+    /// Right edge.
+    pub x1: f32,
+    /// Bottom edge.
+    pub y1: f32,
+}
+
+impl Path {
+    /// The polygon of `steps` points per cubic (start of the cubic included, end left to the
+    /// next one), `4 · steps` points in order: the path as straight edges.
+    pub fn flatten(&self, steps: usize) -> Vec<[f32; 2]> {
+        let steps = steps.max(1);
+        let mut points = Vec::with_capacity(SEGMENTS * steps);
+        for j in 0..SEGMENTS {
+            let control = self.segment(j);
+            points.extend((0..steps).map(|i| cubic_point(&control, i as f32 / steps as f32)));
+        }
+        points
+    }
+
+    /// The area the path encloses in the canvas's unit square (of its outline flattened to 16
+    /// edges per cubic, shoelace formula), signed: positive when the outline turns clockwise on
+    /// screen (y down). Self-overlapping parts count with their winding.
+    pub fn signed_area(&self) -> f32 {
+        let points = self.flatten(16);
+        let twice: f32 = (0..points.len())
+            .map(|i| {
+                let (a, b) = (points[i], points[(i + 1) % points.len()]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum();
+        twice / 2.0
+    }
+
+    /// A rectangle that contains the whole path: the bounds of its control points (a cubic stays
+    /// inside the convex hull of its control points). Non-finite coordinates give non-finite
+    /// bounds.
+    pub fn bounds(&self) -> Bounds {
+        let mut bounds = Bounds { x0: f32::INFINITY, y0: f32::INFINITY, x1: -f32::INFINITY, y1: -f32::INFINITY };
+        for &[x, y] in &self.points {
+            if !(x.is_finite() && y.is_finite()) {
+                return Bounds { x0: f32::NAN, y0: f32::NAN, x1: f32::NAN, y1: f32::NAN };
+            }
+            bounds = Bounds { x0: bounds.x0.min(x), y0: bounds.y0.min(y), x1: bounds.x1.max(x), y1: bounds.y1.max(y) };
+        }
+        bounds
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(lo: f32, hi: f32) -> Path {
+        Path::quadrilateral([[lo, lo], [hi, lo], [hi, hi], [lo, hi]], [0.0; 3], 1.0)
+    }
+
+    #[test]
+    fn area_of_squares_keeps_its_sign() {
+        assert!((square(0.25, 0.75).signed_area() - 0.25).abs() < 1e-6);
+        // The same outline walked backwards: anchors stay at multiples of three.
+        let mut reversed = square(0.25, 0.75);
+        reversed.points.reverse();
+        reversed.points.rotate_right(1);
+        assert!((reversed.signed_area() + 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn flattening_passes_through_the_anchors_and_bounds_contain_it() {
+        let mut path = square(0.1, 0.6);
+        path.points[1] = [0.3, -0.2]; // bend the top edge upwards
+        let polygon = path.flatten(8);
+        assert_eq!(polygon.len(), 32);
+        assert_eq!(polygon[0], path.points[0]);
+        assert_eq!(polygon[8], path.points[3]);
+        let bounds = path.bounds();
+        assert_eq!(bounds, Bounds { x0: 0.1, y0: -0.2, x1: 0.6, y1: 0.6 });
+        let inside = |v: f32, lo: f32, hi: f32| v >= lo - 1e-6 && v <= hi + 1e-6;
+        assert!(polygon.iter().all(|&[x, y]| inside(x, bounds.x0, bounds.x1) && inside(y, bounds.y0, bounds.y1)));
+        assert!(bernstein(0.3).iter().sum::<f32>() - 1.0 < 1e-6);
+    }
+}
