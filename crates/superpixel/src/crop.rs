@@ -93,13 +93,7 @@ impl Segmentation {
     /// If `region` is not a label of this segmentation or the image size differs.
     pub fn crop(&self, image: &Rgb32FImage, region: u32, options: &CropOptions) -> RegionCrop {
         assert_eq!(image.dimensions(), (self.width, self.height), "image and segmentation differ in size");
-        let bbox = self.regions[region as usize].bbox;
-        let padded = BoundingBox {
-            x0: bbox.x0.saturating_sub(options.padding),
-            y0: bbox.y0.saturating_sub(options.padding),
-            x1: (bbox.x1 + options.padding).min(self.width),
-            y1: (bbox.y1 + options.padding).min(self.height),
-        };
+        let padded = self.regions[region as usize].bbox.padded(options.padding, self.width, self.height);
         let transform = CropTransform::of_box(padded);
         let size = options.size;
         let mut pixels = vec![options.fill; 3 * size * size];

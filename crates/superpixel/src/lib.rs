@@ -8,8 +8,11 @@ mod color;
 mod connectivity;
 mod crop;
 mod input;
+mod merge;
+mod outline;
 mod slic;
 
 pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
 pub use input::{InputError, to_rgb_over_white};
+pub use merge::{SegmentOptions, segment};
 pub use slic::{BoundingBox, Region, Segmentation, SlicError, SlicOptions, slic};

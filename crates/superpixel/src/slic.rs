@@ -84,6 +84,21 @@ impl BoundingBox {
     pub fn height(&self) -> u32 {
         self.y1 - self.y0
     }
+
+    /// The box grown by `padding` pixels on every side, clamped to a `width × height` image.
+    pub fn padded(&self, padding: u32, width: u32, height: u32) -> Self {
+        Self {
+            x0: self.x0.saturating_sub(padding),
+            y0: self.y0.saturating_sub(padding),
+            x1: (self.x1 + padding).min(width),
+            y1: (self.y1 + padding).min(height),
+        }
+    }
+
+    /// Whether the two boxes share at least one pixel.
+    pub fn overlaps(&self, other: &Self) -> bool {
+        self.x0 < other.x1 && other.x0 < self.x1 && self.y0 < other.y1 && other.y0 < self.y1
+    }
 }
 
 /// What a region is: size, extent and mean colour.
