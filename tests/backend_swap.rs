@@ -47,8 +47,7 @@ fn step<O: Objective>(
     batch: &supersvg::train::data::Batch,
     device: &Device,
 ) -> StepResult {
-    let (pixels, masks) = batch.tensors(device);
-    let output = objective.step(&model, pixels, masks, 0);
+    let output = objective.step(&model, &batch.tensors(device), 0);
     let mut losses = vec![output.total.clone().into_scalar::<f32>()];
     losses.extend(output.terms.iter().map(|(_, t)| t.clone().into_scalar::<f32>()));
     let raw = output.total.backward();
@@ -80,7 +79,7 @@ fn training_steps_agree_across_backends() {
     let flex = Device::flex();
     let coarse = CoarseModel::new(&model_config, &flex);
     let refine = RefineModel::new(&model_config, &flex);
-    let source = DataSource::new(&coarse_config.data, model_config.input_size, 2, 3).unwrap();
+    let source = DataSource::new(&coarse_config.data, &model_config, 2, 3).unwrap();
     let batch = source.batch(0);
 
     let run = |backend: Backend| {
@@ -92,6 +91,7 @@ fn training_steps_agree_across_backends() {
         let coarse_step = step(&coarse_objective, load_coarse(), &batch, &device);
         let refine_objective = RefineObjective {
             teacher: load_coarse().freeze(),
+            input: model_config.input,
             loss: refine_config.loss.clone(),
             raster: refine_config.raster.options(),
             seed: 5,

@@ -4,8 +4,9 @@
 //! Model tensors are stored under `model/…`; the optimizer's own burnpack container (tensors,
 //! scalars such as Adam's step count, and parameter paths) is embedded whole as the byte tensor
 //! `optimizer`, so nothing of its state is lost. Metadata keys are `supersvg.format`,
-//! `supersvg.stage`, `supersvg.model` (the [`ModelConfig`] as JSON) and `supersvg.training` (an
-//! opaque JSON string owned by the trainer). Loading needs no flags: the configuration rebuilds
+//! `supersvg.stage`, `supersvg.model` (the [`ModelConfig`] as JSON), `supersvg.training` (an
+//! opaque JSON string owned by the trainer) and `supersvg.inference` (the measured
+//! [`OperatingPoint`] as JSON, in coarse checkpoints that have one). Loading needs no flags: the configuration rebuilds
 //! the model before its weights are applied. Writes are atomic (a scratch file renamed over the
 //! target), so an interrupted save never leaves a partial checkpoint.
 
@@ -18,6 +19,7 @@ use burn_pack::{Reader, Writer};
 
 use crate::coarse::CoarseModel;
 use crate::config::ModelConfig;
+use crate::operating::OperatingPoint;
 use crate::refine::RefineModel;
 
 const FORMAT: &str = "supersvg-checkpoint/1";
@@ -95,6 +97,8 @@ pub struct Checkpoint {
     pub optimizer: Option<Bytes>,
     /// The trainer's own state as JSON (step, schedules, data order…), opaque here.
     pub training: Option<String>,
+    /// How inference should split a path budget with this model, when it was measured.
+    pub inference: Option<OperatingPoint>,
 }
 
 impl Checkpoint {
@@ -103,7 +107,7 @@ impl Checkpoint {
     pub fn of_model<M: Module>(stage: Stage, model_config: &ModelConfig, model: &M, dtype: DType) -> Self {
         let record = model.clone().into_record().into_bytes().expect("a record serializes to memory");
         let model = convert(&record, dtype).expect("a fresh record converts");
-        Self { stage, model_config: model_config.clone(), model, optimizer: None, training: None }
+        Self { stage, model_config: model_config.clone(), model, optimizer: None, training: None, inference: None }
     }
 
     /// The same weights without the optimizer state, stored in `dtype`: what inference needs,
@@ -139,6 +143,9 @@ impl Checkpoint {
         if let Some(training) = &self.training {
             writer = writer.with_metadata("supersvg.training", training);
         }
+        if let Some(point) = &self.inference {
+            writer = writer.with_metadata("supersvg.inference", &serde_json::to_string(point).expect("serializes"));
+        }
         writer.write_to_file(path).map_err(|err| io(err.to_string()))
     }
 
@@ -162,6 +169,15 @@ impl Checkpoint {
         let model_config: ModelConfig = serde_json::from_str(&get("supersvg.model")?)
             .map_err(|err| format(format!("model config: {err}")))?;
         model_config.validate().map_err(format)?;
+        let inference = match metadata.get("supersvg.inference") {
+            None => None,
+            Some(json) => {
+                let point: OperatingPoint =
+                    serde_json::from_str(json).map_err(|err| format(format!("operating point: {err}")))?;
+                point.validate().map_err(|err| format(format!("operating point: {err}")))?;
+                Some(point)
+            }
+        };
         let tensors = reader.into_tensors().map_err(|err| format(err.to_string()))?;
         let (model, optimizer) = split(tensors).map_err(format)?;
         Ok(Self {
@@ -170,6 +186,7 @@ impl Checkpoint {
             model,
             optimizer,
             training: metadata.get("supersvg.training").cloned(),
+            inference,
         })
     }
 

@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::input::InputSpec;
+
 /// Named starting points for [`ModelConfig`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -43,6 +45,10 @@ pub struct ModelConfig {
     pub query_heads: usize,
     /// Hidden channels of E_r's fusion convolutions.
     pub fusion_channels: usize,
+    /// How regions are cut into inputs (padding, fill): part of the model, since a model only
+    /// works on inputs made the way it was trained on.
+    #[serde(default)]
+    pub input: InputSpec,
 }
 
 impl ModelConfig {
@@ -61,6 +67,7 @@ impl ModelConfig {
                 query_dim: 128,
                 query_heads: 8,
                 fusion_channels: 32,
+                input: InputSpec::default(),
             },
             Preset::Cpu => Self {
                 input_size: 64,
@@ -74,6 +81,7 @@ impl ModelConfig {
                 query_dim: 128,
                 query_heads: 4,
                 fusion_channels: 16,
+                input: InputSpec::default(),
             },
         }
     }
@@ -96,6 +104,7 @@ impl ModelConfig {
         if let Some((name, _)) = positive.iter().find(|(_, value)| *value == 0) {
             return Err(format!("model.{name} must be positive"));
         }
+        self.input.validate()?;
         if self.input_size % self.patch_size != 0 {
             return Err(format!(
                 "model.input_size ({}) must be a multiple of model.patch_size ({})",

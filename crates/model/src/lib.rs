@@ -3,12 +3,15 @@
 //! - [`CoarseModel`] (E_c): a superpixel crop to n paths with visibility;
 //! - [`RefineModel`] (E_r): the crop and the current canvas to m more paths;
 //!
-//! and their [`Checkpoint`] files. Both return a [`raster::PathBatch`] in the crop's unit square.
+//! their [`Checkpoint`] files, and the input contract both are fed through ([`InputSpec`],
+//! [`CropBatch`]). Both return a [`raster::PathBatch`] in the crop's unit square.
 
 mod checkpoint;
 mod coarse;
 mod config;
 mod decoder;
+mod input;
+mod operating;
 mod prior;
 mod refine;
 mod vit;
@@ -17,5 +20,7 @@ pub use checkpoint::{Checkpoint, CheckpointError, Stage, load_coarse, load_refin
 pub use coarse::CoarseModel;
 pub use config::{ModelConfig, Preset};
 pub use decoder::PathDecoder;
+pub use input::{CropBatch, InputSpec, canvas_cells, crop_to_image};
+pub use operating::OperatingPoint;
 pub use refine::RefineModel;
 pub use vit::VitEncoder;

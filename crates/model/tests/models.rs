@@ -142,6 +142,16 @@ fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
     let direct = Checkpoint::load(&half).unwrap();
     assert_eq!(exported.model.to_vec(), direct.model.to_vec());
 
+    // The input contract and a measured operating point travel with the weights.
+    let point = model::OperatingPoint { coarse_paths: 2, refine_share: 0.25, oversegment: 1.5 };
+    let tuned = Checkpoint { inference: Some(point), ..Checkpoint::load(&half).unwrap() };
+    let tuned_path = dir.join("tuned.ckpt");
+    tuned.save(&tuned_path).unwrap();
+    let reread = Checkpoint::load(&tuned_path).unwrap();
+    assert_eq!(reread.inference, Some(point));
+    assert_eq!(reread.model_config.input, config.input);
+    assert_eq!(Checkpoint::load(&half).unwrap().inference, None);
+
     // Wrong stage, wrong shape, not a checkpoint, missing file.
     let err = load_refine(&path, &device).unwrap_err();
     assert!(matches!(err, CheckpointError::WrongStage { .. }), "{err}");

@@ -88,8 +88,6 @@ pub struct DataConfig {
     pub compactness: f32,
     /// Images are scaled to this long side before SLIC (and generated scenes made this big).
     pub image_size: u32,
-    /// Pixels added around a region's bounding box before cropping.
-    pub crop_padding: u32,
     /// Threads preparing batches.
     pub workers: usize,
     /// Batches prepared ahead of the model.
@@ -107,7 +105,6 @@ impl Default for DataConfig {
             segments: [8, 48],
             compactness: 30.0,
             image_size: 256,
-            crop_padding: 2,
             workers: 1,
             prefetch: 4,
             fixed_batch: false,

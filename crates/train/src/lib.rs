@@ -5,7 +5,7 @@ pub mod cli;
 pub mod config;
 pub mod data;
 pub mod objective;
-mod optimizer;
+pub mod optimizer;
 mod preview;
 mod report;
 mod schedule;

@@ -1,9 +1,11 @@
 //! The losses of the two training stages.
 
+use std::time::Instant;
+
 use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 use dpw::{BoundaryOptions, PathDistance, boundary_loss, dpw, multiscale_masked_l2, path_efficiency_loss};
-use model::{CoarseModel, RefineModel, Stage};
+use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use raster::{PathBatch, SoftRasterOptions, paint_soft, render_soft};
@@ -22,6 +24,31 @@ pub struct StepOutput {
     pub render: Tensor<4>,
     /// Every path drawn in that render, in painter's order.
     pub paths: PathBatch,
+    /// Wall seconds of the step's phases (`model`, `rasterizer`, `losses`), for benchmarks
+    /// and logs.
+    pub phases: Vec<(&'static str, f64)>,
+}
+
+/// Wall-clock laps of a step's phases.
+struct Laps {
+    clock: Instant,
+    phases: Vec<(&'static str, f64)>,
+}
+
+impl Laps {
+    fn start() -> Self {
+        Self { clock: Instant::now(), phases: Vec::new() }
+    }
+
+    /// Ends phase `name` (adding to it if it ran before) and starts the next.
+    fn lap(&mut self, name: &'static str) {
+        let seconds = self.clock.elapsed().as_secs_f64();
+        match self.phases.iter_mut().find(|(phase, _)| *phase == name) {
+            Some((_, total)) => *total += seconds,
+            None => self.phases.push((name, seconds)),
+        }
+        self.clock = Instant::now();
+    }
 }
 
 /// A training stage: its network and its objective.
@@ -30,8 +57,8 @@ pub trait Objective {
     type Model: Module;
     /// Which checkpoint stage it writes.
     const STAGE: Stage;
-    /// Losses of `model` on crops `[B, 3, S, S]` with masks `[B, 1, S, S]` at `step`.
-    fn step(&self, model: &Self::Model, pixels: Tensor<4>, masks: Tensor<4>, step: usize) -> StepOutput;
+    /// Losses of `model` on a batch of region crops at `step`.
+    fn step(&self, model: &Self::Model, crops: &CropBatch, step: usize) -> StepOutput;
     /// The colour under the paths in renders.
     fn background(&self) -> [f32; 3];
 }
@@ -52,13 +79,19 @@ impl Objective for CoarseObjective {
         self.raster.background
     }
 
-    fn step(&self, model: &CoarseModel, pixels: Tensor<4>, masks: Tensor<4>, step: usize) -> StepOutput {
+    fn step(&self, model: &CoarseModel, crops: &CropBatch, step: usize) -> StepOutput {
+        let (pixels, masks) = (crops.pixels.clone(), crops.masks.clone());
         let [_, _, size, _] = pixels.dims();
+        let mut laps = Laps::start();
         let paths = model.forward(pixels.clone());
+        laps.lap("model");
         let render = render_soft(&paths, size, size, &self.raster);
+        laps.lap("rasterizer");
         let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
+        laps.lap("losses");
         let boundary = BoundaryOptions { dilation: self.loss.boundary.dilation, raster: self.raster.clone() };
         let bound = boundary_loss(&paths, masks, &boundary);
+        laps.lap("rasterizer");
         let efficiency = path_efficiency_loss(paths.alpha());
         let (bound_weight, efficiency_weight) = (self.loss.boundary.at(step), self.loss.path_efficiency);
         let total = l2.clone() + bound.clone() * bound_weight + efficiency.clone() * efficiency_weight;
@@ -68,6 +101,10 @@ impl Objective for CoarseObjective {
             weights: vec![("lambda_bound", bound_weight), ("lambda_pe", efficiency_weight)],
             render,
             paths,
+            phases: {
+                laps.lap("losses");
+                laps.phases
+            },
         }
     }
 }
@@ -76,11 +113,15 @@ impl Objective for CoarseObjective {
 /// `L2(x, R([S₁, S'])) + λ_guide·G(S₂, S') + λ_bound·L_bound(S')`.
 ///
 /// The frozen coarse model predicts S; its visible paths are split at a random k (leaving at
-/// least m after the split when there are that many); S₁ = the first k is rendered as the canvas,
-/// E_r adds S' over it, and the guidance G ties S' to S₂ = the visible paths after the split.
+/// least m after the split when there are that many); S₁ = the first k is rendered over the
+/// region's mean colour as the canvas (inference draws every region with its mean colour before
+/// anything else), E_r reads that canvas masked by the input contract and adds S' over it, and
+/// the guidance G ties S' to S₂ = the visible paths after the split.
 pub struct RefineObjective {
     /// The trained coarse model (frozen).
     pub teacher: CoarseModel,
+    /// The input contract of the models (from the coarse checkpoint).
+    pub input: InputSpec,
     /// Loss weights, schedules and guidance.
     pub loss: RefineLoss,
     /// The soft rasterizer.
@@ -97,20 +138,30 @@ impl Objective for RefineObjective {
         self.raster.background
     }
 
-    fn step(&self, model: &RefineModel, pixels: Tensor<4>, masks: Tensor<4>, step: usize) -> StepOutput {
+    fn step(&self, model: &RefineModel, crops: &CropBatch, step: usize) -> StepOutput {
+        let (pixels, masks) = (crops.pixels.clone(), crops.masks.clone());
         let [_, _, size, _] = pixels.dims();
         let device = pixels.device();
+        let mut laps = Laps::start();
         let coarse = self.teacher.forward(pixels.clone()).detach();
+        laps.lap("teacher");
         let [batch, count] = coarse.dims();
         let split = Split::draw(&coarse, model.refine_paths(), self.seed, step);
 
         let first = coarse.with_alpha(split.first_part(&device));
-        let canvas = render_soft(&first, size, size, &self.raster).detach();
-        let added = model.forward(pixels.clone(), canvas.clone());
+        let area = masks.clone().sum_dim(2).sum_dim(3).clamp_min(1.0);
+        let mean = (pixels.clone() * masks.clone()).sum_dim(2).sum_dim(3) / area;
+        let canvas = paint_soft(mean.expand([batch, 3, size, size]), &first, &self.raster).detach();
+        laps.lap("rasterizer");
+        let added = model.forward(pixels.clone(), crops.masked_canvas(canvas.clone(), &self.input));
+        laps.lap("model");
         let render = paint_soft(canvas, &added, &self.raster);
+        laps.lap("rasterizer");
         let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
+        laps.lap("losses");
         let boundary = BoundaryOptions { dilation: self.loss.boundary.dilation, raster: self.raster.clone() };
         let bound = boundary_loss(&added, masks, &boundary);
+        laps.lap("rasterizer");
 
         let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
         let distances = distance.between(&added, &coarse); // [B, m, n]
@@ -139,6 +190,10 @@ impl Objective for RefineObjective {
             weights: vec![("lambda_guidance", guidance_weight), ("lambda_bound", bound_weight)],
             render,
             paths: first.then(&added),
+            phases: {
+                laps.lap("losses");
+                laps.phases
+            },
         }
     }
 }

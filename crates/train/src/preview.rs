@@ -4,34 +4,33 @@ use std::path::Path;
 
 use image::{Rgb, RgbImage};
 use raster::{PathBatch, render_exact, skia_outline};
+use superpixel::RegionCrop;
 use tiny_skia::{Paint, Pixmap, Stroke, Transform};
 
 /// Writes a PNG grid, one row per sample (up to `rows`): target crop (grey outside the mask) |
 /// soft render | exact render of the paths | exact render with the path outlines.
 pub fn write_preview(
     path: &Path,
-    pixels: &[f32],
-    masks: &[f32],
+    crops: &[RegionCrop],
     render: &[f32],
     paths: &PathBatch,
     background: [f32; 3],
     rows: usize,
 ) -> image::ImageResult<()> {
     let scenes = paths.to_scenes();
-    let size = (masks.len() / scenes.len().max(1)).isqrt();
-    let rows = rows.min(scenes.len());
+    let size = crops.first().map_or(1, |crop| crop.size);
+    let rows = rows.min(scenes.len()).min(crops.len());
     let tile = size as u32 * 2;
     let mut grid = RgbImage::from_pixel(4 * tile + 5, rows as u32 * (tile + 1) + 1, Rgb([40, 40, 40]));
-    for (row, scene) in scenes.iter().take(rows).enumerate() {
-        let planar = |data: &[f32], x: usize, y: usize, c: usize| data[((row * 3 + c) * size + y) * size + x];
+    for (row, (scene, crop)) in scenes.iter().zip(crops).take(rows).enumerate() {
         let target = RgbImage::from_fn(size as u32, size as u32, |x, y| {
-            let inside = masks[(row * size + y as usize) * size + x as usize] > 0.5;
-            Rgb(std::array::from_fn(|c| {
-                if inside { to_u8(planar(pixels, x as usize, y as usize, c)) } else { 128 }
-            }))
+            let cell = y as usize * size + x as usize;
+            let inside = crop.mask[cell] > 0.5;
+            Rgb(std::array::from_fn(|c| if inside { to_u8(crop.pixels[c * size * size + cell]) } else { 128 }))
         });
         let soft = RgbImage::from_fn(size as u32, size as u32, |x, y| {
-            Rgb(std::array::from_fn(|c| to_u8(planar(render, x as usize, y as usize, c))))
+            let at = |c: usize| render[((row * 3 + c) * size + y as usize) * size + x as usize];
+            Rgb(std::array::from_fn(|c| to_u8(at(c))))
         });
         let exact = render_exact(scene, tile, tile, background);
         let outlined = with_outlines(&exact, scene);

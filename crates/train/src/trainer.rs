@@ -196,8 +196,7 @@ pub fn train<O: Objective>(
         Ok(())
     };
 
-    let crop = model_config.input_size;
-    let source = Arc::new(DataSource::new(data, crop, optim.batch_size, optim.seed)?);
+    let source = Arc::new(DataSource::new(data, &model_config, optim.batch_size, optim.seed)?);
     let mut loader = Loader::start(source, first_step as u64, data.workers, data.prefetch);
     let mut reporter = Reporter::open(&run.dir, first_step, optim.steps).map_err(|err| io(&run.dir, &err))?;
     if first_step > 0 {
@@ -213,8 +212,7 @@ pub fn train<O: Objective>(
         let started = Instant::now();
         let batch = loader.next_batch();
         let data_seconds = started.elapsed().as_secs_f64();
-        let (pixels, masks) = batch.tensors(&run.device);
-        let output = objective.step(&model, pixels, masks, step);
+        let output = objective.step(&model, &batch.tensors(&run.device), step);
 
         let total: f32 = output.total.clone().into_scalar();
         let mut values: Vec<(&'static str, f32)> =
@@ -258,7 +256,7 @@ pub fn train<O: Objective>(
         }
         if let Some((render, paths)) = preview {
             let path = run.dir.join(format!("preview-{done:06}.png"));
-            write_preview(&path, &batch.pixels, &batch.masks, &render, &paths, objective.background(), 8)
+            write_preview(&path, &batch.crops, &render, &paths, objective.background(), 8)
                 .map_err(|err| io(&path, &err))?;
         }
         if done % optim.checkpoint_every == 0 && done != optim.steps {

@@ -100,6 +100,7 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
     let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
     let objective = RefineObjective {
         teacher: teacher.clone().freeze(),
+        input: model_config.input,
         loss: config.loss.clone(),
         raster: config.raster.options(),
         seed: config.train.seed,

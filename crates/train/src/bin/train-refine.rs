@@ -40,9 +40,10 @@ fn run(args: CommonArgs, init: PathBuf) -> Result<train::trainer::Summary, Box<d
     let resume = if args.resume { Some(resume_from::<RefineObjective>(&dir)?) } else { None };
     let path = checkpoint_path::<RefineObjective>(&dir);
     let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
-    let start = model_from(fresh, &model_config, resume, &path, (&device, config.train.seed))?;
+    let start = model_from(fresh, &model_config.clone(), resume, &path, (&device, config.train.seed))?;
     let objective = RefineObjective {
         teacher: teacher.freeze(),
+        input: model_config.input,
         loss: config.loss.clone(),
         raster: config.raster.options(),
         seed: config.train.seed,

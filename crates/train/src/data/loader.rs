@@ -54,7 +54,8 @@ mod tests {
     #[test]
     fn delivers_the_stream_in_order_from_any_start() {
         let config = DataConfig { image_size: 48, segments: [3, 6], ..Default::default() };
-        let source = Arc::new(DataSource::new(&config, 8, 2, 1).unwrap());
+        let model = model::ModelConfig { input_size: 8, ..model::ModelConfig::preset(model::Preset::Cpu) };
+        let source = Arc::new(DataSource::new(&config, &model, 2, 1).unwrap());
         let mut loader = Loader::start(Arc::clone(&source), 5, 3, 2);
         for index in 5..12 {
             assert_eq!(loader.next_batch(), source.batch(index));

@@ -1,11 +1,12 @@
 //! What a training batch is, and how batch `i` is made from the seed alone.
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use image::Rgb32FImage;
+use model::{CropBatch, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use superpixel::{CropOptions, SlicOptions, slic};
+use superpixel::{RegionCrop, Segmentation, SlicOptions, slic};
 
 use super::images::ImageSet;
 use super::synthetic::synthetic_scene;
@@ -22,28 +23,19 @@ impl DataError {
     }
 }
 
-/// Region crops and masks of one step, on the CPU.
+/// Region crops of one step, on the CPU.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Batch {
     /// Index of the batch in the data stream (the step it is for).
     pub index: u64,
-    /// Samples in the batch.
-    pub size: usize,
-    /// Side of every crop.
-    pub crop: usize,
-    /// `[B, 3, S, S]`: colours inside the region, −1 outside (model input and target).
-    pub pixels: Vec<f32>,
-    /// `[B, 1, S, S]`: 1 inside the region.
-    pub masks: Vec<f32>,
+    /// The samples, cut by the model's input contract ([`ModelConfig::region_crop`]).
+    pub crops: Vec<RegionCrop>,
 }
 
 impl Batch {
     /// The crops and masks as tensors on `device`.
-    pub fn tensors(&self, device: &Device) -> (Tensor<4>, Tensor<4>) {
-        let (b, s) = (self.size, self.crop);
-        let pixels = Tensor::from_data(TensorData::new(self.pixels.clone(), [b, 3, s, s]), device);
-        let masks = Tensor::from_data(TensorData::new(self.masks.clone(), [b, 1, s, s]), device);
-        (pixels, masks)
+    pub fn tensors(&self, device: &Device) -> CropBatch {
+        CropBatch::new(&self.crops, device)
     }
 }
 
@@ -51,7 +43,7 @@ impl Batch {
 pub struct DataSource {
     config: DataConfig,
     images: Option<ImageSet>,
-    crop: CropOptions,
+    model: ModelConfig,
     batch_size: usize,
     seed: u64,
 }
@@ -62,17 +54,23 @@ const REGIONS_PER_SCENE: usize = 4;
 const MIN_REGION_PIXELS: usize = 16;
 
 impl DataSource {
-    /// Opens the sources of `config` (reading the image folder, if any).
+    /// Opens the sources of `config` (reading the image folder, if any) for a model of
+    /// configuration `model` (whose input contract cuts the crops).
     pub fn new(
         config: &DataConfig,
-        crop_size: usize,
+        model: &ModelConfig,
         batch_size: usize,
         seed: u64,
     ) -> Result<Self, DataError> {
         let images =
             config.images.as_deref().map(|folder| ImageSet::load(folder, config.image_size)).transpose()?;
-        let crop = CropOptions { size: crop_size, padding: config.crop_padding, fill: -1.0 };
-        Ok(Self { config: config.clone(), images, crop, batch_size, seed })
+        Ok(Self { config: config.clone(), images, model: model.clone(), batch_size, seed })
+    }
+
+    /// Region `region` of `scene` as a training sample: exactly the model input inference
+    /// builds for the same region of the same image.
+    pub fn sample(&self, scene: &Rgb32FImage, segmentation: &Segmentation, region: u32) -> RegionCrop {
+        self.model.region_crop(segmentation, scene, region)
     }
 
     /// Batch `index` of the stream: a pure function of the seed and the index, so a resumed run
@@ -81,9 +79,8 @@ impl DataSource {
     pub fn batch(&self, index: u64) -> Batch {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(if self.config.fixed_batch { 0 } else { index });
-        let s = self.crop.size;
-        let (mut pixels, mut masks) = (Vec::new(), Vec::new());
-        while masks.len() < self.batch_size * s * s {
+        let mut crops = Vec::with_capacity(self.batch_size);
+        while crops.len() < self.batch_size {
             let scene = self.scene(&mut rng);
             let [low, high] = self.config.segments;
             let options = SlicOptions {
@@ -98,15 +95,13 @@ impl DataSource {
                 .collect();
             regions.shuffle(&mut rng);
             for &region in regions.iter().take(REGIONS_PER_SCENE) {
-                if masks.len() == self.batch_size * s * s {
+                if crops.len() == self.batch_size {
                     break;
                 }
-                let crop = segmentation.crop(&scene, region, &self.crop);
-                pixels.extend(crop.pixels);
-                masks.extend(crop.mask);
+                crops.push(self.sample(&scene, &segmentation, region));
             }
         }
-        Batch { index, size: self.batch_size, crop: s, pixels, masks }
+        Batch { index, crops }
     }
 
     /// A scene to cut regions from: generated or from the folder, by `synthetic_weight`.
@@ -130,19 +125,19 @@ mod tests {
     #[test]
     fn batches_depend_only_on_seed_and_index() {
         let config = DataConfig { image_size: 64, segments: [4, 8], ..Default::default() };
-        let source = DataSource::new(&config, 16, 5, 7).unwrap();
+        let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
+        let source = DataSource::new(&config, &model, 5, 7).unwrap();
         let batch = source.batch(3);
-        assert_eq!(batch.pixels.len(), 5 * 3 * 16 * 16);
-        assert_eq!(batch.masks.len(), 5 * 16 * 16);
-        assert_eq!(batch, DataSource::new(&config, 16, 5, 7).unwrap().batch(3));
+        assert_eq!(batch.crops.len(), 5);
+        assert!(batch.crops.iter().all(|crop| crop.size == 16));
+        assert_eq!(batch, DataSource::new(&config, &model, 5, 7).unwrap().batch(3));
         assert_ne!(batch, source.batch(4));
-        assert_ne!(batch, DataSource::new(&config, 16, 5, 8).unwrap().batch(3));
+        assert_ne!(batch, DataSource::new(&config, &model, 5, 8).unwrap().batch(3));
         // Every crop has some region and fills outside it with −1.
-        for sample in 0..5 {
-            let mask = &batch.masks[sample * 256..(sample + 1) * 256];
-            assert!(mask.iter().any(|&m| m == 1.0));
-            let red = &batch.pixels[sample * 3 * 256..sample * 3 * 256 + 256];
-            assert!(mask.iter().zip(red).all(|(&m, &p)| if m == 0.0 {
+        for crop in &batch.crops {
+            assert!(crop.mask.iter().any(|&m| m == 1.0));
+            let red = &crop.pixels[..256];
+            assert!(crop.mask.iter().zip(red).all(|(&m, &p)| if m == 0.0 {
                 p == -1.0
             } else {
                 (0.0..=1.0).contains(&p)

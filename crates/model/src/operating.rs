@@ -1,0 +1,68 @@
+//! Where a path budget goes at inference: measured for a pair of models, stored with them.
+
+use serde::{Deserialize, Serialize};
+
+/// How inference splits a path budget between superpixel regions, the coarse model's paths and
+/// the refinement model's paths, and how the regions are made. Which split draws best depends
+/// on how well each model draws, so it is found by measurement (`tune`) and stored in the
+/// coarse checkpoint.
+///
+/// With a budget of N paths, one path is the background, every region gets one fallback path
+/// (its outline in its mean colour) and up to `coarse_paths` paths from E_c that make it
+/// better, and `refine_share` · N paths are kept for E_r: the number of regions is
+/// ⌊(N·(1 − refine_share) − 1) / (1 + coarse_paths)⌋.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OperatingPoint {
+    /// The most E_c paths kept per region on top of its fallback (0: E_c is not run).
+    pub coarse_paths: usize,
+    /// Share of the budget kept for E_r, in [0, 1) (0: no refinement).
+    pub refine_share: f32,
+    /// SLIC is asked for this many times the regions, merged down by colour
+    /// (`superpixel::segment`); at least 1.
+    pub oversegment: f32,
+}
+
+impl Default for OperatingPoint {
+    /// For models nothing was measured for: every path a region of its own, the drawing that
+    /// does not depend on how well the models draw; regions from SLIC at three times the count,
+    /// merged by colour (the best fallback drawing on data/eval/photos, docs/operating-point.md).
+    fn default() -> Self {
+        Self { coarse_paths: 0, refine_share: 0.0, oversegment: 3.0 }
+    }
+}
+
+impl OperatingPoint {
+    /// Checks the values; the message names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(0.0..1.0).contains(&self.refine_share) {
+            return Err(format!("refine_share must be within [0, 1), got {}", self.refine_share));
+        }
+        if !(self.oversegment.is_finite() && self.oversegment >= 1.0) {
+            return Err(format!("oversegment must be at least 1, got {}", self.oversegment));
+        }
+        Ok(())
+    }
+
+    /// Number of regions for a budget of `paths` (at least one).
+    pub fn regions(&self, paths: usize) -> usize {
+        let for_regions = (paths as f64 * (1.0 - self.refine_share as f64)).floor() as usize;
+        (for_regions.saturating_sub(1) / (1 + self.coarse_paths)).max(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regions_leave_room_for_every_stage() {
+        let mosaic = OperatingPoint::default();
+        assert_eq!(mosaic.regions(500), 499);
+        let split = OperatingPoint { coarse_paths: 3, refine_share: 0.2, oversegment: 1.0 };
+        assert_eq!(split.regions(500), 99); // 99 · 4 + 1 = 397 ≤ 400
+        assert_eq!(split.regions(2), 1);
+        assert!(OperatingPoint { refine_share: 1.0, ..mosaic }.validate().is_err());
+        assert!(OperatingPoint { oversegment: 0.5, ..mosaic }.validate().is_err());
+    }
+}
