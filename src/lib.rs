@@ -7,6 +7,7 @@
 //! - [`dpw`]: the training objectives (normalized L2, boundary, path efficiency, DPW);
 //! - [`superpixel`]: SLIC, region crops and paste-back;
 //! - [`model`]: the coarse and refinement networks and their checkpoints;
-//! - [`train`]: `train-coarse` and `train-refine`.
+//! - [`train`]: `train-coarse` and `train-refine`;
+//! - [`infer`]: `infer`, the inference stages over one scene, fine-tuning and metrics.
 
-pub use {dpw, model, raster, superpixel, train};
+pub use {dpw, infer, model, raster, superpixel, train};

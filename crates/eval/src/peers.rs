@@ -1,13 +1,15 @@
-//! Other ways to vectorize an image, for comparison: vtracer, potrace on colour layers, and
-//! filling superpixels with their mean colour. Plus SVG rendering and path counting that treat
-//! every method alike.
+//! Other ways to vectorize an image, for comparison: vtracer, potrace on colour layers, filling
+//! superpixels with their mean colour (pixel-exact), and SuperSVG's own fallback drawing alone.
+//! Plus SVG rendering and path counting that treat every method alike.
 
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
 use image::{Rgb, Rgb32FImage};
-use superpixel::{SlicOptions, slic};
+use raster::Path as VectorPath;
+use model::OperatingPoint;
+use superpixel::{SegmentOptions, SlicOptions, segment, slic};
 
 /// An SVG made by some method, and the seconds it took.
 pub struct Traced {
@@ -152,6 +154,19 @@ pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FIma
     (filled, segmentation.regions.len(), started.elapsed().as_secs_f64())
 }
 
+/// SuperSVG's fallback drawing alone with at most `paths` paths: the background and `paths − 1`
+/// superpixels (made as the default operating point makes them), each its outline fitted with
+/// one path in its mean colour. What the pipeline starts from, and what its learned stages must
+/// improve on.
+pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorPath>, f64), String> {
+    let started = Instant::now();
+    let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
+    let options = SegmentOptions { oversegment: OperatingPoint::default().oversegment, ..Default::default() };
+    let segmentation = segment(image, regions, &options).map_err(|err| err.to_string())?;
+    let drawing = infer::fallback::mosaic(image, &segmentation);
+    Ok((drawing, started.elapsed().as_secs_f64()))
+}
+
 /// The result of `run` with the most shapes not above `target`, over knob values `low..=high`
 /// (a larger knob gives fewer shapes), by bisection in at most 8 runs; the fewest shapes seen if
 /// nothing fits.
@@ -244,6 +259,6 @@ mod tests {
             );
         let (filled, regions, _) = mean_color_superpixels(&image, 2);
         assert!(regions >= 2);
-        assert!(crate::metrics::psnr(&filled, &image) > 20.0);
+        assert!(infer::metrics::psnr(&filled, &image) > 20.0);
     }
 }

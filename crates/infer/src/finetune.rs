@@ -11,10 +11,10 @@ use burn::module::Param;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
-use raster::{PARAMS, Path, PathBatch, SoftRasterOptions, paint_soft};
-use superpixel::{BoundingBox, CropTransform, Segmentation};
+use raster::{PARAMS, Path, PathBatch, SoftRasterOptions, paint_soft, render_exact};
+use superpixel::{BoundingBox, CropTransform};
 
-use crate::pipeline::{Placed, region_errors, render};
+use crate::scene::Scene;
 
 /// How long to fine-tune.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,60 +52,57 @@ impl Default for FinetuneOptions {
     }
 }
 
-/// Fine-tunes `paths` (image unit square) against `image` on `device` (with autodiff).
-/// Returns the number of optimizer steps taken.
-pub fn finetune(
-    paths: &mut [Placed],
-    segmentation: &Segmentation,
-    image: &Rgb32FImage,
-    options: &FinetuneOptions,
-    device: &Device,
-) -> usize {
+/// Fine-tunes the paths of `scene` (all but the background) against its image on `device`
+/// (with autodiff), then renders the scene again; if the exact rendering came out worse than
+/// before, the scene keeps its old paths. Returns the number of optimizer steps taken.
+pub fn finetune(scene: &mut Scene, options: &FinetuneOptions, device: &Device) -> usize {
     let started = Instant::now();
+    let before: f64 = scene.region_errors().iter().sum();
+    let original = scene.scene();
+    let image = scene.target().clone();
     let (width, height) = image.dimensions();
+    let segmentation = scene.segmentation().clone();
+    let regions: Vec<Option<u32>> = scene.paths().iter().map(|placed| placed.region).collect();
+    let mut paths = scene.scene();
     let mut order: Vec<u32> = (0..segmentation.regions.len() as u32).collect();
-    let background = options.raster.background;
-    let scene: Vec<Path> = paths.iter().map(|p| p.path).collect();
-    let errors = region_errors(&render(&scene, width, height, background), image, segmentation);
+    let errors = scene.region_errors();
     order.sort_by(|a, b| errors[*b as usize].total_cmp(&errors[*a as usize]));
     let mut steps = 0;
     let mut taken = vec![0usize; order.len()];
-    loop {
+    'rounds: loop {
         let mut progressed = false;
         for &region in &order {
             let turn = match options.budget {
                 Budget::StepsPerRegion(total) => options.steps_per_turn.min(total - taken[region as usize]),
-                Budget::Seconds(limit) if started.elapsed().as_secs_f64() >= limit => return steps,
+                Budget::Seconds(limit) if started.elapsed().as_secs_f64() >= limit => break 'rounds,
                 Budget::Seconds(_) => options.steps_per_turn,
             };
-            let members: Vec<usize> = (0..paths.len()).filter(|&i| paths[i].region == region).collect();
+            let members: Vec<usize> = (0..paths.len()).filter(|&i| regions[i] == Some(region)).collect();
             if turn == 0 || members.is_empty() {
                 continue;
             }
-            let bbox = segmentation.regions[region as usize].bbox;
-            let bbox = BoundingBox {
-                x0: bbox.x0.saturating_sub(options.padding),
-                y0: bbox.y0.saturating_sub(options.padding),
-                x1: (bbox.x1 + options.padding).min(width),
-                y1: (bbox.y1 + options.padding).min(height),
-            };
+            let bbox = segmentation.regions[region as usize].bbox.padded(options.padding, width, height);
             let transform = CropTransform::of_box(bbox);
             let others: Vec<Path> =
-                paths.iter().enumerate().filter(|(i, _)| !members.contains(i)).map(|(_, p)| p.path).collect();
-            let local: Vec<Path> =
-                members.iter().map(|&i| to_box(paths[i].path, &transform, width, height)).collect();
-            let tuned = optimize(&local, &others, image, bbox, turn, options, device);
+                paths.iter().enumerate().filter(|(i, _)| !members.contains(i)).map(|(_, p)| *p).collect();
+            let local: Vec<Path> = members.iter().map(|&i| to_box(paths[i], &transform, width, height)).collect();
+            let tuned = optimize(&local, &others, &image, bbox, turn, options, device);
             for (&i, path) in members.iter().zip(tuned) {
-                paths[i].path = from_box(path, &transform, width, height);
+                paths[i] = from_box(path, &transform, width, height);
             }
             taken[region as usize] += turn;
             steps += turn;
             progressed = true;
         }
         if !progressed {
-            return steps;
+            break;
         }
     }
+    scene.set_paths(&paths);
+    if scene.region_errors().iter().sum::<f64>() > before {
+        scene.set_paths(&original);
+    }
+    steps
 }
 
 /// `steps` Adam steps on `local` (box unit square) painted over the exact rendering of
@@ -121,7 +118,8 @@ fn optimize(
 ) -> Vec<Path> {
     let (width, height) = image.dimensions();
     let (w, h) = (bbox.width() as usize, bbox.height() as usize);
-    let everything_else = render(others, width, height, options.raster.background);
+    let everything_else =
+        image::DynamicImage::ImageRgb8(render_exact(others, width, height, options.raster.background)).to_rgb32f();
     let planar = |source: &Rgb32FImage| -> Tensor<4> {
         let values: Vec<f32> = (0..3)
             .flat_map(|c| {

@@ -83,8 +83,7 @@ fn window_means(values: &[f64], width: usize, height: usize, weights: &[f64]) ->
 /// A fixed pair of test images, `width × height`: a pattern and a dimmed, wavy copy of it. The
 /// reference values of the metric tests (scikit-image, and numpy's LPIPS in
 /// scripts/fetch-lpips.sh) were computed on the same formula.
-#[cfg(test)]
-pub(crate) fn test_pair(width: u32, height: u32) -> (Rgb32FImage, Rgb32FImage) {
+pub fn test_pair(width: u32, height: u32) -> (Rgb32FImage, Rgb32FImage) {
     use image::Rgb;
     let value = |x: u32, y: u32, c: u32| ((x * 7 + y * 3 + c * 5) % 11) as f64 / 10.0;
     let a = Rgb32FImage::from_fn(width, height, |x, y| {

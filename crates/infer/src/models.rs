@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
-use model::{Checkpoint, CheckpointError, CoarseModel, ModelConfig, RefineModel, Stage};
+use model::{Checkpoint, CheckpointError, CoarseModel, ModelConfig, OperatingPoint, RefineModel, Stage};
 
 /// The trained networks, ready for inference.
 pub struct Models {
@@ -11,11 +11,11 @@ pub struct Models {
     pub coarse: CoarseModel,
     /// E_r; without it the result has only coarse paths.
     pub refine: Option<RefineModel>,
-    /// Their configuration (crop size, paths per call).
+    /// Their configuration (architecture and input contract).
     pub config: ModelConfig,
-    /// How many of its paths E_c keeps visible per region on average (from its training), used
-    /// to choose the number of superpixels for a path budget.
-    pub visible_per_region: f32,
+    /// How a path budget is split between regions, E_c and E_r: the one measured for these
+    /// models and stored in the coarse checkpoint, or [`OperatingPoint::default`].
+    pub operating_point: OperatingPoint,
 }
 
 impl Models {
@@ -24,13 +24,7 @@ impl Models {
         let checkpoint = Checkpoint::load(coarse)?;
         checkpoint.expect_stage(Stage::Coarse, coarse)?;
         let config = checkpoint.model_config.clone();
-        let visible_per_region = checkpoint
-            .training
-            .as_deref()
-            .and_then(|json| serde_json::from_str::<serde_json::Value>(json).ok())
-            .and_then(|state| state["recent"]["visible_paths"].as_f64())
-            .map_or(config.paths as f32, |v| v as f32)
-            .clamp(1.0, config.paths as f32);
+        let operating_point = checkpoint.inference.unwrap_or_default();
         let coarse_model = checkpoint.apply(CoarseModel::new(&config, device), coarse)?;
         let refine = match refine {
             None => None,
@@ -46,7 +40,7 @@ impl Models {
                 Some(checkpoint.apply(RefineModel::new(&config, device), path)?)
             }
         };
-        Ok(Self { coarse: coarse_model, refine, config, visible_per_region })
+        Ok(Self { coarse: coarse_model, refine, config, operating_point })
     }
 }
 

@@ -1,10 +1,28 @@
-//! README's first command: the bundled models vectorize the bundled example image, unaided.
+//! README's first command: the bundled models vectorize the bundled example image, unaided, and
+//! draw it at least about as well as its own superpixels filled with their mean colour.
 
 use std::process::Command;
 
+use image::{Rgb, Rgb32FImage};
 use infer::decode::load;
 use infer::metrics::psnr;
-use infer::peers::{mean_color_superpixels, render_svg};
+use superpixel::{SlicOptions, slic};
+
+/// The SVG rendered by resvg on a transparent canvas: RGB over white, and each pixel's alpha.
+fn render(svg: &str, width: u32, height: u32) -> (Rgb32FImage, Vec<u8>) {
+    let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default()).unwrap();
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).unwrap();
+    let size = tree.size();
+    let scale = resvg::tiny_skia::Transform::from_scale(width as f32 / size.width(), height as f32 / size.height());
+    resvg::render(&tree, scale, &mut pixmap.as_mut());
+    let alpha = pixmap.pixels().iter().map(|p| p.alpha()).collect();
+    let rgb = Rgb32FImage::from_fn(width, height, |x, y| {
+        let p = pixmap.pixel(x, y).unwrap();
+        let over_white = |c: u8| (c as f32 + (255 - p.alpha()) as f32) / 255.0;
+        Rgb([over_white(p.red()), over_white(p.green()), over_white(p.blue())])
+    });
+    (rgb, alpha)
+}
 
 #[test]
 fn bundled_models_draw_the_example_image() {
@@ -13,22 +31,31 @@ fn bundled_models_draw_the_example_image() {
     let dir = std::env::temp_dir().join(format!("supersvg-bundled-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let output = dir.join("astronaut.svg");
+    let budget = 200;
     let result = Command::new(env!("CARGO_BIN_EXE_infer"))
-        .args([&input, "-o", output.to_str().unwrap(), "--paths", "200", "--size", "128"])
+        .args([&input, "-o", output.to_str().unwrap(), "--paths", &budget.to_string(), "--size", "128"])
         .env_remove("SUPERSVG_MODELS")
         .output()
         .unwrap();
     assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
 
-    // The drawing must resemble the photo better than its best single flat colour does.
     let image = load(std::path::Path::new(&input), 128).unwrap().image;
     let (width, height) = image.dimensions();
     let svg = std::fs::read_to_string(&output).unwrap();
-    let drawn = render_svg(&svg, width, height).unwrap();
-    let (flat, regions, _) = mean_color_superpixels(&image, 1);
-    assert_eq!(regions, 1);
-    let (ours, baseline) = (psnr(&drawn, &image), psnr(&flat, &image));
-    assert!(ours > baseline, "bundled models: {ours:.2} dB, flat mean colour: {baseline:.2} dB");
-    assert_eq!(svg.matches("<path").count(), 200);
+    let paths = svg.matches("<path").count();
+    assert!(paths <= budget && paths > budget / 2, "{paths} paths for a budget of {budget}");
+
+    // Paths alone cover every pixel: no hole, no seam.
+    let (drawn, alpha) = render(&svg, width, height);
+    let uncovered = alpha.iter().filter(|&&a| a < 255).count();
+    assert_eq!(uncovered, 0, "{uncovered} pixels not fully covered");
+
+    // The floor: within a decibel of the pixel-exact superpixel mosaic with as many regions as
+    // paths.
+    let segmentation = slic(&image, &SlicOptions { n_segments: budget, ..Default::default() }).unwrap();
+    let mosaic =
+        Rgb32FImage::from_fn(width, height, |x, y| Rgb(segmentation.regions[segmentation.label(x, y) as usize].mean_color));
+    let (ours, floor) = (psnr(&drawn, &image), psnr(&mosaic, &image));
+    assert!(ours >= floor - 1.0, "bundled models: {ours:.2} dB, mosaic of {budget} regions: {floor:.2} dB");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -77,9 +77,9 @@ fn parse_svg(path: &Path) -> resvg::usvg::Tree {
 }
 
 #[test]
-fn meets_the_path_budget_exactly_and_keeps_the_input_size() {
+fn stays_within_the_path_budget_and_keeps_the_input_size() {
     let fixture = Fixture::new("budget");
-    for budget in [3usize, 40, 100] {
+    for budget in [2usize, 3, 40, 100] {
         let out = fixture.path(&format!("photo-{budget}.svg"));
         let metrics = fixture.path("metrics.json");
         let result = fixture.infer(&[
@@ -93,14 +93,56 @@ fn meets_the_path_budget_exactly_and_keeps_the_input_size() {
         ]);
         assert!(result.status.success(), "{}", text(&result.stderr));
         let svg = std::fs::read_to_string(&out).unwrap();
-        assert_eq!(svg.matches("<path").count(), budget, "budget {budget}");
+        let paths = svg.matches("<path").count();
+        // The default operating point gives every path but the background a region of its own.
+        assert!(paths <= budget && paths * 10 >= budget * 9, "{paths} paths for a budget of {budget}");
         assert!(svg.contains("viewBox=\"0 0 96 64\""));
         assert_eq!(parse_svg(&out).size().width(), 96.0);
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
-        assert_eq!(report["paths"], budget);
+        assert_eq!(report["paths"], paths);
+        assert_eq!(report["paths_by_stage"]["background"], 1);
         assert!(report["psnr"].as_f64().unwrap() > 0.0);
         assert!(report["seconds"]["total"].as_f64().unwrap() > 0.0);
+    }
+}
+
+/// How many pixels an SVG leaves less than fully covered, rendered on a transparent canvas.
+fn uncovered(svg: &Path, width: u32, height: u32) -> usize {
+    let tree = parse_svg(svg);
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).unwrap();
+    resvg::render(&tree, resvg::tiny_skia::Transform::identity(), &mut pixmap.as_mut());
+    pixmap.pixels().iter().filter(|p| p.alpha() < 255).count()
+}
+
+#[test]
+fn paths_cover_every_pixel_at_any_budget_and_region_count() {
+    let fixture = Fixture::new("coverage");
+    let cases: [(&str, Option<&str>); 6] =
+        [("2", None), ("3", Some("1")), ("40", Some("80")), ("100", None), ("30", Some("5000")), ("60", Some("7"))];
+    for (paths, regions) in cases {
+        for refine in [true, false] {
+            let out = fixture.path("covered.svg");
+            let mut args =
+                vec![fixture.path("photo.png").to_str().unwrap().to_string(), "-o".into(), out.to_str().unwrap().into()];
+            args.extend(["--paths".into(), paths.to_string()]);
+            if let Some(regions) = regions {
+                args.extend(["--regions".into(), regions.to_string()]);
+            }
+            let coarse = fixture.path("coarse.ckpt");
+            args.extend(["--coarse".into(), coarse.to_str().unwrap().to_string()]);
+            if refine {
+                args.extend(["--refine".into(), fixture.path("refine.ckpt").to_str().unwrap().to_string()]);
+            } else {
+                args.push("--no-refine".into());
+            }
+            let result = Command::new(INFER).args(&args).output().unwrap();
+            assert!(result.status.success(), "{args:?}: {}", text(&result.stderr));
+            let svg = std::fs::read_to_string(&out).unwrap();
+            assert!(svg.matches("<path").count() <= paths.parse().unwrap(), "{args:?}");
+            assert!(!svg.contains("<rect"), "coverage must come from paths alone");
+            assert_eq!(uncovered(&out, 96, 64), 0, "{args:?}");
+        }
     }
 }
 

@@ -14,16 +14,26 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
+use eval::cli::{files_in, finish, load_models};
+use eval::lpips::Lpips;
+use eval::peers::{
+    available, count_shapes, fallback_mosaic, mean_color_superpixels, potrace_colors, render_svg, vtracer,
+};
+use eval::spill::spill;
 use image::{Rgb32FImage, RgbImage};
 use infer::decode::load;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
-use infer::lpips::Lpips;
 use infer::metrics::{mse, psnr, ssim};
-use infer::models::{Models, bundled};
-use infer::peers::{available, count_shapes, mean_color_superpixels, potrace_colors, render_svg, vtracer};
 use infer::pipeline::{Options, vectorize};
+use infer::scene::{Origin, Scene};
 use infer::write::{write_atomic, write_png};
 use raster::{Backend, to_svg};
+
+/// Peers `--peers` accepts.
+const PEERS: [&str; 4] = ["vtracer", "potrace", "slic", "fallback"];
+/// Dilation (pixels) of a region's mask before its paths' spill is measured: the margin the
+/// training's boundary loss allows.
+const SPILL_DILATION: u32 = 2;
 
 /// Evaluate SuperSVG and other vectorizers on a folder of images.
 #[derive(Parser, Debug)]
@@ -31,7 +41,7 @@ use raster::{Backend, to_svg};
 struct Args {
     /// Folder of images.
     dir: PathBuf,
-    /// Path budgets, comma separated.
+    /// Path budgets, comma separated (each at least 2).
     #[arg(long, value_delimiter = ',', default_value = "500,2000")]
     paths: Vec<usize>,
     /// Also run SuperSVG-F, fine-tuning for this many seconds per image.
@@ -52,8 +62,9 @@ struct Args {
     /// Long side of the working resolution.
     #[arg(long, default_value_t = 512)]
     size: u32,
-    /// Peers to run when installed: vtracer, potrace, slic (comma separated; empty for none).
-    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic")]
+    /// Peers: vtracer and potrace (when installed), slic (pixel-exact superpixels in their mean
+    /// colour), fallback (SuperSVG's fallback drawing alone); comma separated, empty for none.
+    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic,fallback")]
     peers: Vec<String>,
     /// Evaluate only the first N images.
     #[arg(long)]
@@ -68,33 +79,37 @@ struct Row {
     ssim: f64,
     lpips: Option<f64>,
     seconds: f64,
+    /// Paths per stage and spill, for SuperSVG's own drawings.
+    anatomy: Option<Anatomy>,
+}
+
+/// What a SuperSVG drawing is made of.
+struct Anatomy {
+    stages: Vec<(Origin, usize)>,
+    spill: f64,
 }
 
 fn main() -> ExitCode {
-    match run(Args::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(err) => {
-            eprintln!("error: {err}");
-            ExitCode::FAILURE
-        }
-    }
+    finish(run(Args::parse()))
 }
 
 fn run(args: Args) -> Result<(), String> {
-    let mut images: Vec<PathBuf> = std::fs::read_dir(&args.dir)
-        .map_err(|err| format!("{}: {err}", args.dir.display()))?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
-        .filter(|path| path.is_file())
-        .collect();
-    images.sort();
+    if let Some(bad) = args.peers.iter().find(|p| !p.is_empty() && !PEERS.contains(&p.as_str())) {
+        return Err(format!("--peers: unknown peer `{bad}` (known: {})", PEERS.join(", ")));
+    }
+    if let Some(bad) = args.paths.iter().find(|&&p| p < 2) {
+        return Err(format!("--paths: {bad} is too small (at least 2: the background and one region)"));
+    }
+    if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+        return Err(format!("--finetune-secs: {seconds} is not a number of seconds"));
+    }
+    let mut images = files_in(&args.dir)?;
     images.truncate(args.limit.unwrap_or(usize::MAX));
     if images.is_empty() {
         return Err(format!("{}: no images", args.dir.display()));
     }
     let device = args.backend.device().map_err(|err| err.to_string())?;
-    let coarse = args.coarse.clone().map_or_else(|| bundled("coarse.ckpt"), Ok)?;
-    let refine = args.refine.clone().map_or_else(|| bundled("refine.ckpt"), Ok)?;
-    let models = Models::load(&coarse, Some(&refine), &device).map_err(|err| err.to_string())?;
+    let (models, _, _) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let scratch = std::env::temp_dir().join(format!("supersvg-eval-{}", std::process::id()));
     std::fs::create_dir_all(&scratch).map_err(|err| err.to_string())?;
 
@@ -118,6 +133,7 @@ fn run(args: Args) -> Result<(), String> {
     // results[(budget, method)] = one row per image
     let mut results: BTreeMap<(usize, String), Vec<Row>> = BTreeMap::new();
     let mut sheet_rows: Vec<Vec<(String, Rgb32FImage)>> = Vec::new();
+    let mut evaluated = 0;
     for (index, path) in images.iter().enumerate() {
         let loaded = match load(path, args.size) {
             Ok(loaded) => loaded,
@@ -126,6 +142,7 @@ fn run(args: Args) -> Result<(), String> {
                 continue;
             }
         };
+        evaluated += 1;
         let image = &loaded.image;
         let (width, height) = image.dimensions();
         let png = scratch.join("input.png");
@@ -133,10 +150,11 @@ fn run(args: Args) -> Result<(), String> {
         let mut tiles = vec![("input".to_string(), image.clone())];
         let mut record = |budget: usize,
                           method: &str,
-                          svg_or_image: Result<(Rgb32FImage, usize), String>,
+                          drawn: Result<(Rgb32FImage, usize), String>,
                           seconds: f64,
+                          anatomy: Option<Anatomy>,
                           tiles: &mut Vec<(String, Rgb32FImage)>| {
-            match svg_or_image {
+            match drawn {
                 Ok((drawn, shapes)) => {
                     let row = Row {
                         shapes,
@@ -145,6 +163,7 @@ fn run(args: Args) -> Result<(), String> {
                         ssim: ssim(&drawn, image).unwrap_or(f64::NAN),
                         lpips: lpips.as_ref().map(|net| net.distance(&drawn, image)),
                         seconds,
+                        anatomy,
                     };
                     if budget == args.paths[0] {
                         tiles.push((method.to_string(), drawn));
@@ -155,61 +174,59 @@ fn run(args: Args) -> Result<(), String> {
             }
         };
         let rendered = |svg: &str| render_svg(svg, width, height).map(|drawn| (drawn, count_shapes(svg)));
+        let drawing = |scene: &Scene| -> Result<(Rgb32FImage, usize), String> {
+            let svg = to_svg(&scene.scene(), width, height, None).map_err(|e| e.to_string())?;
+            rendered(&svg)
+        };
+        let anatomy = |scene: &Scene| Anatomy {
+            stages: scene.counts(),
+            spill: spill(scene.paths(), scene.segmentation(), SPILL_DILATION),
+        };
         for &budget in &args.paths {
             let started = Instant::now();
             let options = Options { paths: budget, ..Options::default() };
-            let mut result = vectorize(&models, image, &options, &device);
-            let svg = to_svg(&result.scene(), width, height, Some(options.background))
-                .map_err(|e| e.to_string())?;
+            let mut result = vectorize(&models, image, &options, &device).map_err(|e| e.to_string())?;
             let seconds = started.elapsed().as_secs_f64();
-            record(budget, "SuperSVG-B (ours)", rendered(&svg), seconds, &mut tiles);
+            let parts = Some(anatomy(&result.scene));
+            record(budget, "SuperSVG-B (ours)", drawing(&result.scene), seconds, parts, &mut tiles);
             if let Some(limit) = args.finetune_secs {
                 let tuning = Instant::now();
-                let options_f =
-                    FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
-                finetune(
-                    &mut result.paths,
-                    &result.segmentation,
-                    image,
-                    &options_f,
-                    &device.clone().autodiff(),
-                );
-                let svg = to_svg(&result.scene(), width, height, Some(options.background))
-                    .map_err(|e| e.to_string())?;
+                let options_f = FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
+                finetune(&mut result.scene, &options_f, &device.clone().autodiff());
                 let total = seconds + tuning.elapsed().as_secs_f64();
-                record(budget, "SuperSVG-F (ours)", rendered(&svg), total, &mut tiles);
+                let parts = Some(anatomy(&result.scene));
+                record(budget, "SuperSVG-F (ours)", drawing(&result.scene), total, parts, &mut tiles);
+            }
+            if wanted("fallback") {
+                let drawn = fallback_mosaic(image, budget).and_then(|(paths, seconds)| {
+                    let svg = to_svg(&paths, width, height, None).map_err(|e| e.to_string())?;
+                    Ok((rendered(&svg)?, seconds))
+                });
+                let seconds = drawn.as_ref().map_or(0.0, |(_, s)| *s);
+                let name = "fallback alone (fitted outlines, mean colour)";
+                record(budget, name, drawn.map(|(d, _)| d), seconds, None, &mut tiles);
             }
             if use_vtracer {
                 let traced = vtracer(&png, Some(budget), &scratch);
                 let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
-                record(budget, "vtracer", traced.and_then(|t| rendered(&t.svg)), seconds, &mut tiles);
+                record(budget, "vtracer", traced.and_then(|t| rendered(&t.svg)), seconds, None, &mut tiles);
             }
             if use_potrace {
                 let traced = potrace_colors(image, 16, Some(budget), &scratch);
                 let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
-                record(
-                    budget,
-                    "potrace, 16 colour layers",
-                    traced.and_then(|t| rendered(&t.svg)),
-                    seconds,
-                    &mut tiles,
-                );
+                let drawn = traced.and_then(|t| rendered(&t.svg));
+                record(budget, "potrace, 16 colour layers", drawn, seconds, None, &mut tiles);
             }
             if wanted("slic") {
                 let (filled, regions, seconds) = mean_color_superpixels(image, budget);
-                record(budget, "SLIC regions, mean colour", Ok((filled, regions)), seconds, &mut tiles);
+                record(budget, "SLIC regions, mean colour", Ok((filled, regions)), seconds, None, &mut tiles);
             }
         }
         if use_vtracer {
             let traced = vtracer(&png, None, &scratch);
             let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
-            record(
-                0,
-                "vtracer (default settings)",
-                traced.and_then(|t| rendered(&t.svg)),
-                seconds,
-                &mut tiles,
-            );
+            let drawn = traced.and_then(|t| rendered(&t.svg));
+            record(0, "vtracer (default settings)", drawn, seconds, None, &mut tiles);
         }
         if sheet_rows.len() < 8 {
             sheet_rows.push(tiles);
@@ -217,13 +234,16 @@ fn run(args: Args) -> Result<(), String> {
         eprintln!("[{}/{}] {}", index + 1, images.len(), path.display());
     }
     let _ = std::fs::remove_dir_all(&scratch);
+    if evaluated == 0 {
+        return Err(format!("{}: no readable images", args.dir.display()));
+    }
 
     let sheet_path = args.out.with_extension("png");
     write_png(&sheet_path, &contact_sheet(&sheet_rows, 160))
         .map_err(|err| format!("{}: {err}", sheet_path.display()))?;
     let columns: Vec<String> =
         sheet_rows.first().map(|row| row.iter().map(|(name, _)| name.clone()).collect()).unwrap_or_default();
-    let report = report(&args, images.len(), &results, &notes, (&sheet_path, &columns));
+    let report = report(&args, evaluated, &results, &notes, (&sheet_path, &columns));
     write_atomic(&args.out, report.as_bytes()).map_err(|err| format!("{}: {err}", args.out.display()))?;
     eprintln!("wrote {} and {}", args.out.display(), sheet_path.display());
     Ok(())
@@ -233,7 +253,8 @@ fn to_rgb8(image: &Rgb32FImage) -> RgbImage {
     image::DynamicImage::ImageRgb32F(image.clone()).to_rgb8()
 }
 
-/// The markdown report: one table per budget with the mean over images.
+/// The markdown report: one table per budget with the mean over images, then where SuperSVG's
+/// paths came from.
 fn report(
     args: &Args,
     images: usize,
@@ -260,7 +281,8 @@ fn report(
             text,
             "## {title}\n\n| method | shapes | PSNR (dB) | SSIM | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
         );
-        for ((_, method), rows) in results.iter().filter(|((b, _), _)| *b == budget) {
+        let rows_here = results.iter().filter(|((b, _), _)| *b == budget);
+        for ((_, method), rows) in rows_here.clone() {
             let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
             let lpips = if rows.iter().all(|r| r.lpips.is_some()) {
                 format!("{:.4}", mean(&|r| r.lpips.unwrap_or(f64::NAN)))
@@ -276,6 +298,32 @@ fn report(
                 mean(&|r| r.mse),
                 mean(&|r| r.seconds)
             );
+        }
+        let ours: Vec<_> = rows_here.filter(|(_, rows)| rows.iter().all(|r| r.anatomy.is_some())).collect();
+        if !ours.is_empty() {
+            let stages: Vec<&str> = Origin::ALL.iter().map(|o| o.name()).collect();
+            let _ = writeln!(
+                text,
+                "\nWhere SuperSVG's paths come from (mean paths per image by stage) and spill (share of \
+                 region paths' area outside their region dilated by {SPILL_DILATION} px):\n\n| method | {} | \
+                 spill |\n| --- |{} ---: |",
+                stages.join(" | "),
+                " ---: |".repeat(stages.len())
+            );
+            for ((_, method), rows) in ours {
+                let anatomy = || rows.iter().filter_map(|r| r.anatomy.as_ref());
+                let per_stage: Vec<String> = Origin::ALL
+                    .iter()
+                    .map(|origin| {
+                        let count: usize = anatomy()
+                            .map(|a| a.stages.iter().find(|(o, _)| o == origin).map_or(0, |(_, n)| *n))
+                            .sum();
+                        format!("{:.1}", count as f64 / rows.len() as f64)
+                    })
+                    .collect();
+                let spill = anatomy().map(|a| a.spill).sum::<f64>() / rows.len() as f64;
+                let _ = writeln!(text, "| {method} | {} | {spill:.3} |", per_stage.join(" | "));
+            }
         }
         text.push('\n');
     }

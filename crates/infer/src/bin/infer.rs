@@ -29,7 +29,8 @@ struct Args {
     /// Output SVG file for one input, or a folder for several.
     #[arg(short, long)]
     output: PathBuf,
-    /// Number of paths in the result.
+    /// The most paths in the result (at least 2); fewer only when no further path lowers the
+    /// error.
     #[arg(long, default_value_t = 500)]
     paths: usize,
     /// Coarse-model checkpoint (default: the bundled one).
@@ -47,7 +48,8 @@ struct Args {
     /// Long side of the working resolution (the SVG keeps the input's size).
     #[arg(long, default_value_t = 512)]
     size: u32,
-    /// Number of superpixels (default: from the budget and the coarse model).
+    /// Number of superpixels (default: the operating point stored with the coarse model, for
+    /// the budget).
     #[arg(long)]
     regions: Option<usize>,
     /// Write a PNG rendering of the result (a folder for several inputs).
@@ -153,7 +155,7 @@ fn process(
     let started = Instant::now();
     let loaded = load(input, args.size).map_err(|err| err.message)?;
     let decoded = started.elapsed().as_secs_f64();
-    let mut result = vectorize(models, &loaded.image, options, device);
+    let mut result = vectorize(models, &loaded.image, options, device).map_err(|err| err.to_string())?;
     let budget = match (args.finetune_steps, args.finetune_secs) {
         (Some(steps), _) => Some(Budget::StepsPerRegion(steps)),
         (None, Some(seconds)) => Some(Budget::Seconds(seconds)),
@@ -162,26 +164,20 @@ fn process(
     if let Some(budget) = budget {
         let tuning = Instant::now();
         let options = FinetuneOptions { budget, ..FinetuneOptions::default() };
-        finetune(
-            &mut result.paths,
-            &result.segmentation,
-            &loaded.image,
-            &options,
-            &device.clone().autodiff(),
-        );
+        finetune(&mut result.scene, &options, &device.clone().autodiff());
         result.timings.push(("finetune", tuning.elapsed().as_secs_f64()));
     }
-    let scene = result.scene();
+    let scene = result.scene.scene();
 
     let export = Instant::now();
     let (width, height) = loaded.original;
-    let svg = to_svg(&scene, width, height, Some(options.background)).map_err(|err| err.to_string())?;
+    let svg = to_svg(&scene, width, height, None).map_err(|err| err.to_string())?;
     let svg_path = destination(&args.output, "svg");
     write_atomic(&svg_path, svg.as_bytes()).map_err(|err| format!("{}: {err}", svg_path.display()))?;
 
     let (w, h) = loaded.image.dimensions();
     let needs_render = args.preview.is_some() || args.compare.is_some() || args.metrics.is_some();
-    let rendering = needs_render.then(|| render_exact(&scene, w, h, options.background));
+    let rendering = needs_render.then(|| render_exact(&scene, w, h, [1.0; 3]));
     if let (Some(folder), Some(rendering)) = (&args.preview, &rendering) {
         let path = destination(folder, "png");
         write_png(&path, rendering).map_err(|err| format!("{}: {err}", path.display()))?;
@@ -208,8 +204,17 @@ fn process(
             "working_width": w,
             "working_height": h,
             "paths": scene.len(),
-            "coarse_paths": result.coarse_paths,
-            "regions": result.segmentation.regions.len(),
+            "paths_by_stage": result
+                .scene
+                .counts()
+                .into_iter()
+                .map(|(origin, count)| (origin.name().to_string(), serde_json::Value::from(count)))
+                .collect::<serde_json::Map<_, _>>(),
+            "regions": result.scene.segmentation().regions.len(),
+            "operating_point": {
+                "coarse_paths": result.operating_point.coarse_paths,
+                "refine_share": result.operating_point.refine_share,
+            },
             "mse": mse(&drawn, &loaded.image),
             "psnr": psnr(&drawn, &loaded.image),
             "ssim": ssim(&drawn, &loaded.image),

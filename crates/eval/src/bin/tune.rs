@@ -1,0 +1,152 @@
+//! `tune`: measures SuperSVG-B over a grid of operating points (how a path budget is split
+//! between regions, E_c and E_r, and how regions are made) and stores the best with the model.
+//!
+//! `tune DIR --paths 500,2000 --coarse-paths 0,2,4 --refine-share 0,0.25 --oversegment 1,3
+//!       --out docs/operating-point.md [--write models/coarse.ckpt]`
+//!
+//! Scores are the PSNR of the exact rendering at the working resolution, averaged over images
+//! and then over budgets; the best point is the one with the highest average.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+use eval::cli::{files_in, finish, load_models};
+use infer::decode::load;
+use infer::metrics::psnr;
+use infer::pipeline::{Options, vectorize};
+use infer::scene::Origin;
+use infer::write::write_atomic;
+use model::{Checkpoint, OperatingPoint};
+use raster::Backend;
+
+/// Measure operating points of SuperSVG-B on a folder of images.
+#[derive(Parser, Debug)]
+#[command(name = "tune", version)]
+struct Args {
+    /// Folder of images.
+    dir: PathBuf,
+    /// Path budgets, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "500,2000")]
+    paths: Vec<usize>,
+    /// Values of the most E_c paths per region.
+    #[arg(long, value_delimiter = ',', default_value = "0,1,2,4")]
+    coarse_paths: Vec<usize>,
+    /// Values of the budget share kept for E_r.
+    #[arg(long, value_delimiter = ',', default_value = "0,0.1,0.25")]
+    refine_share: Vec<f32>,
+    /// Values of the SLIC oversegmentation factor.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3,4")]
+    oversegment: Vec<f32>,
+    /// The markdown table to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Store the best point in this coarse checkpoint (rewritten in place).
+    #[arg(long)]
+    write: Option<PathBuf>,
+    /// Coarse-model checkpoint (default: the bundled one).
+    #[arg(long)]
+    coarse: Option<PathBuf>,
+    /// Refinement-model checkpoint (default: the bundled one).
+    #[arg(long)]
+    refine: Option<PathBuf>,
+    /// Long side of the working resolution.
+    #[arg(long, default_value_t = 512)]
+    size: u32,
+    /// Compute backend: flex, ndarray or wgpu.
+    #[arg(long, default_value = "flex")]
+    backend: Backend,
+}
+
+/// One grid point's results: mean PSNR, mean seconds and mean paths per stage, per budget.
+struct Measured {
+    point: OperatingPoint,
+    psnr: Vec<f64>,
+    seconds: Vec<f64>,
+    stages: Vec<[f64; 4]>,
+}
+
+fn main() -> ExitCode {
+    finish(run(Args::parse()))
+}
+
+fn run(args: Args) -> Result<(), String> {
+    let device = args.backend.device().map_err(|err| err.to_string())?;
+    let (models, coarse, refine) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
+    let mut points = Vec::new();
+    for &coarse_paths in &args.coarse_paths {
+        for &refine_share in &args.refine_share {
+            for &oversegment in &args.oversegment {
+                let point = OperatingPoint { coarse_paths, refine_share, oversegment };
+                point.validate().map_err(|err| format!("grid point {point:?}: {err}"))?;
+                points.push(point);
+            }
+        }
+    }
+    let images: Vec<_> = files_in(&args.dir)?
+        .iter().filter_map(|path| load(path, args.size).ok().map(|l| l.image)).collect();
+    if images.is_empty() {
+        return Err(format!("{}: no readable images", args.dir.display()));
+    }
+
+    let mut measured = Vec::new();
+    for (index, &point) in points.iter().enumerate() {
+        let budgets = args.paths.len();
+        let mut result = Measured { point, psnr: vec![0.0; budgets], seconds: vec![0.0; budgets], stages: vec![[0.0; 4]; budgets] };
+        for (b, &paths) in args.paths.iter().enumerate() {
+            for image in &images {
+                let started = Instant::now();
+                let options = Options { paths, operating_point: Some(point), ..Options::default() };
+                let drawn = vectorize(&models, image, &options, &device).map_err(|err| err.to_string())?;
+                result.seconds[b] += started.elapsed().as_secs_f64() / images.len() as f64;
+                result.psnr[b] += psnr(&drawn.scene.canvas_image(), image) / images.len() as f64;
+                for (origin, count) in drawn.scene.counts() {
+                    let slot = Origin::ALL.iter().position(|o| *o == origin).expect("every origin is listed");
+                    result.stages[b][slot] += count as f64 / images.len() as f64;
+                }
+            }
+        }
+        eprintln!("[{}/{}] {point:?}: {:?}", index + 1, points.len(), result.psnr);
+        measured.push(result);
+    }
+    let mean = |m: &Measured| m.psnr.iter().sum::<f64>() / m.psnr.len() as f64;
+    let best = measured.iter().max_by(|a, b| mean(a).total_cmp(&mean(b))).expect("a grid point");
+
+    let mut text = format!(
+        "# Operating point\n\nSuperSVG-B on `{}` ({} images, {} px), models `{}` and `{}`. PSNR of the exact \
+         rendering, mean over images; paths per stage (background / fallback / coarse / refine), mean over \
+         images.\n\nCommand: `{}`\n\n| coarse paths | refine share | oversegment |",
+        args.dir.display(),
+        images.len(),
+        args.size,
+        coarse.display(),
+        refine.display(),
+        std::env::args().collect::<Vec<_>>().join(" ")
+    );
+    for paths in &args.paths {
+        let _ = write!(text, " PSNR @{paths} | stages @{paths} | s @{paths} |");
+    }
+    let _ = write!(text, " mean PSNR |\n| ---: | ---: | ---: |{} ---: |\n", " ---: | ---: | ---: |".repeat(args.paths.len()));
+    for m in &measured {
+        let p = m.point;
+        let _ = write!(text, "| {} | {} | {} |", p.coarse_paths, p.refine_share, p.oversegment);
+        for b in 0..args.paths.len() {
+            let stages: Vec<String> = m.stages[b].iter().map(|v| format!("{v:.0}")).collect();
+            let _ = write!(text, " {:.2} | {} | {:.2} |", m.psnr[b], stages.join(" / "), m.seconds[b]);
+        }
+        let marker = if std::ptr::eq(m, best) { " **best**" } else { "" };
+        let _ = writeln!(text, " {:.2}{marker} |", mean(m));
+    }
+    write_atomic(&args.out, text.as_bytes()).map_err(|err| format!("{}: {err}", args.out.display()))?;
+    eprintln!("best: {:?} ({:.2} dB); wrote {}", best.point, mean(best), args.out.display());
+
+    if let Some(path) = &args.write {
+        let checkpoint = Checkpoint::load(path).map_err(|err| err.to_string())?;
+        let tuned = Checkpoint { inference: Some(best.point), ..checkpoint };
+        tuned.save(path).map_err(|err| err.to_string())?;
+        eprintln!("stored the best point in {}", path.display());
+    }
+    Ok(())
+}

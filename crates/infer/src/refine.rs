@@ -1,0 +1,61 @@
+//! The refinement stage: E_r adds paths to the regions drawn worst, and a path stays only if it
+//! lowers the error of the box it was drawn in.
+
+use burn::tensor::Device;
+use model::{CropBatch, ModelConfig, RefineModel, canvas_cells, crop_to_image};
+use superpixel::RegionCrop;
+
+use crate::scene::{Origin, Placed, Scene, Scope};
+
+/// Rounds of E_r until `scene` holds `budget` paths or no region is left to improve: each round
+/// ranks the regions by squared error, gives E_r (target, canvas) crops of the worst `batch`
+/// (as many as the remaining budget can use), and tries each proposed path over the current
+/// drawing, keeping those that lower the squared error of their box. A region none of whose
+/// proposals helped is not proposed for again; the budget goes to the next-worst ones.
+pub fn draw_refinement(
+    refine: &RefineModel,
+    config: &ModelConfig,
+    scene: &mut Scene,
+    budget: usize,
+    batch: usize,
+    device: &Device,
+) {
+    let regions = scene.segmentation().regions.len();
+    let mut exhausted = vec![false; regions];
+    let mut crops: Vec<Option<RegionCrop>> = vec![None; regions];
+    let (width, height) = scene.target().dimensions();
+    while scene.len() < budget {
+        let remaining = budget - scene.len();
+        let errors = scene.region_errors();
+        let mut worst: Vec<u32> =
+            (0..regions as u32).filter(|&r| !exhausted[r as usize] && errors[r as usize] > 0.0).collect();
+        worst.sort_by(|a, b| errors[*b as usize].total_cmp(&errors[*a as usize]).then(a.cmp(b)));
+        worst.truncate(remaining.div_ceil(config.refine_paths).min(batch.max(1)));
+        if worst.is_empty() {
+            return;
+        }
+        for &r in &worst {
+            if crops[r as usize].is_none() {
+                crops[r as usize] = Some(scene.region_crop(config, r));
+            }
+        }
+        let chosen: Vec<&RegionCrop> = worst.iter().map(|&r| crops[r as usize].as_ref().expect("cut above")).collect();
+        let targets = CropBatch::new(chosen.iter().copied(), device);
+        let canvas = canvas_cells(&scene.canvas_image(), chosen.iter().copied(), device);
+        let canvas = targets.masked_canvas(canvas, &config.input);
+        let proposals = refine.forward(targets.pixels, canvas).to_scenes();
+        for ((&region, crop), paths) in worst.iter().zip(chosen).zip(proposals) {
+            let mut kept = 0;
+            for path in paths {
+                if scene.len() == budget {
+                    return;
+                }
+                let path = crop_to_image(path, crop, width, height);
+                if scene.try_push(Placed { path, region: Some(region), origin: Origin::Refine }, Scope::All, 0.0) {
+                    kept += 1;
+                }
+            }
+            exhausted[region as usize] |= kept == 0;
+        }
+    }
+}

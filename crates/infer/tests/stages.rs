@@ -1,0 +1,61 @@
+//! Stage by stage the drawing can only get better: fallback ≤ coarse ≤ coarse + refinement ≤
+//! fine-tuned, at one budget, with the bundled models.
+
+use burn::tensor::Device;
+use image::{Rgb, Rgb32FImage};
+use infer::coarse::{CoarseBudget, draw_coarse};
+use infer::decode::load;
+use infer::finetune::{Budget, FinetuneOptions, finetune};
+use infer::metrics::psnr;
+use infer::models::{Models, bundled};
+use infer::refine::draw_refinement;
+use infer::scene::{Origin, Scene};
+use superpixel::{SegmentOptions, segment};
+
+fn images() -> Vec<Rgb32FImage> {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let photo = load(std::path::Path::new(&format!("{root}/assets/astronaut.jpg")), 96).unwrap().image;
+    let drawing = Rgb32FImage::from_fn(90, 70, |x, y| {
+        let inside = ((x as f32 - 40.0).powi(2) + (y as f32 - 30.0).powi(2)).sqrt() < 22.0;
+        if inside { Rgb([0.9, 0.7, 0.1]) } else { Rgb([0.1, 0.2 + y as f32 / 200.0, 0.6]) }
+    });
+    vec![photo, drawing]
+}
+
+#[test]
+fn no_stage_lowers_the_psnr() {
+    let device = Device::flex();
+    let coarse = bundled("coarse.ckpt").unwrap();
+    let refine = bundled("refine.ckpt").unwrap();
+    let models = Models::load(&coarse, Some(&refine), &device).unwrap();
+    let refine = models.refine.as_ref().unwrap();
+    let budget = 60;
+    for image in images() {
+        let segmentation = segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
+        let score = |scene: &Scene| psnr(&scene.canvas_image(), &image);
+
+        let mut fallback = Scene::new(image.clone(), segmentation.clone());
+        let no_coarse = CoarseBudget { per_region: 0, total: 45 };
+        draw_coarse(&models.coarse, &models.config, &mut fallback, no_coarse, 16, &device);
+
+        let mut scene = Scene::new(image.clone(), segmentation);
+        draw_coarse(&models.coarse, &models.config, &mut scene, CoarseBudget { per_region: 2, total: 45 }, 16, &device);
+        let after_coarse = score(&scene);
+        assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
+        assert!(scene.len() <= 45);
+
+        draw_refinement(refine, &models.config, &mut scene, budget, 16, &device);
+        let after_refine = score(&scene);
+        assert!(after_refine >= after_coarse, "refinement {after_refine} < coarse {after_coarse}");
+        assert!(scene.len() <= budget);
+        let refined = scene.paths().iter().filter(|p| p.origin == Origin::Refine).count();
+        let coarse_kept = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
+        assert!(coarse_kept > 0 && refined > 0, "the stages kept {coarse_kept} and {refined} paths: nothing was compared");
+
+        let options = FinetuneOptions { budget: Budget::StepsPerRegion(4), ..FinetuneOptions::default() };
+        finetune(&mut scene, &options, &device.clone().autodiff());
+        let after_finetune = score(&scene);
+        assert!(after_finetune >= after_refine, "fine-tuning {after_finetune} < refinement {after_refine}");
+        assert_eq!(scene.paths().iter().filter(|p| p.origin == Origin::Refine).count(), refined);
+    }
+}
