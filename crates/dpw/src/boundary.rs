@@ -3,7 +3,7 @@
 use burn::tensor::Tensor;
 use burn::tensor::module::max_pool2d;
 use burn::tensor::ops::MaxPoolOptions;
-use raster::{PathBatch, SoftRasterOptions, render_soft};
+use raster::{PathBatch, SoftRasterOptions, render_soft_with_union};
 
 /// Options of [`boundary_loss`].
 #[derive(Clone, Debug)]
@@ -36,18 +36,22 @@ pub fn dilate(mask: Tensor<4>, radius: usize) -> Tensor<4> {
 /// so invisible paths are kept inside too — and `mask'` the `[B, 1, H, W]` mask dilated by
 /// `options.dilation`. Zero when every path stays inside the dilated mask; it grows with the
 /// covered area outside. A mask that covers the whole crop has no outside and gives 0.
+///
+/// Renders the paths' coverage itself; a training step that renders the paths anyway takes it
+/// from [`raster::paint_soft_with_union`] and calls [`boundary_loss_of_union`].
 pub fn boundary_loss(paths: &PathBatch, mask: Tensor<4>, options: &BoundaryOptions) -> Tensor<1> {
-    let [batch, count] = paths.dims();
     let [_, _, height, width] = mask.dims();
-    let device = paths.device();
-    let white = paths
-        .with_colors(Tensor::ones([1, 1, 3], &device))
-        .with_alpha(Tensor::ones([batch, count, 1], &device));
-    let raster = options.raster.clone().with_background([0.0; 3]);
-    let coverage = render_soft(&white, height, width, &raster).narrow(1, 0, 1);
-    let outside = dilate(mask, options.dilation).neg() + 1.0;
+    let (_, union) = render_soft_with_union(paths, height, width, &options.raster);
+    boundary_loss_of_union(union, mask, options.dilation)
+}
+
+/// [`boundary_loss`] from the union of the paths' coverage `[B, 1, H, W]` (what painting every
+/// path white at full opacity over black gives) and the mask dilated by `dilation` pixels.
+pub fn boundary_loss_of_union(union: Tensor<4>, mask: Tensor<4>, dilation: usize) -> Tensor<1> {
+    let [batch, _, _, _] = mask.dims();
+    let outside = dilate(mask, dilation).neg() + 1.0;
     let per_sample = |t: Tensor<4>| t.reshape([batch as i64, -1]).sum_dim(1);
-    let area_outside = per_sample(coverage * outside.clone());
+    let area_outside = per_sample(union * outside.clone());
     (area_outside / per_sample(outside).clamp_min(1.0)).mean()
 }
 

@@ -4,7 +4,7 @@
 //! painter's order as [`crate::render_soft`], nonzero fill rule, linear (non-gamma) blending.
 
 use image::RgbImage;
-use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Transform};
+use tiny_skia::{Color, FillRule, Mask, Paint, PathBuilder, Pixmap, Transform};
 
 use crate::path::{Path, SEGMENTS};
 
@@ -41,6 +41,15 @@ pub fn paint_exact(pixmap: &mut Pixmap, path: &Path, canvas: (u32, u32), origin:
         .post_translate(-(origin.0 as f32), -(origin.1 as f32));
     pixmap.fill_path(&outline, &paint, FillRule::Winding, transform, None);
     true
+}
+
+/// The exact anti-aliased coverage (0–255 per pixel, row-major) of `path` alone on a `width ×
+/// height` canvas, opacity ignored; `None` for a path that cannot be drawn or an empty canvas.
+pub fn coverage_exact(path: &Path, width: u32, height: u32) -> Option<Mask> {
+    let outline = skia_outline(path)?;
+    let mut mask = Mask::new(width, height)?;
+    mask.fill_path(&outline, FillRule::Winding, true, Transform::from_scale(width as f32, height as f32));
+    Some(mask)
 }
 
 /// The closed outline of a drawable path in unit-square coordinates (scale it to the canvas with

@@ -15,10 +15,11 @@ const REPARAMETERIZE: usize = 2;
 /// closed polygon `outline`, coordinates in whatever unit the outline uses, filled with `color`
 /// at opacity `alpha`.
 ///
-/// The outline is resampled evenly by length; every rotation of the four anchors along it (in
-/// steps of one sample) is tried, each cubic's two handles are solved for by least squares with
-/// its ends fixed on the outline, the samples are re-projected onto the curve twice, and the
-/// rotation with the smallest error wins. `grow` moves every sample that far along the outline's
+/// The outline is resampled evenly by length; each cubic's two handles are solved for by least
+/// squares with its ends (anchors) fixed on the outline and the samples re-projected onto the
+/// curve twice. Every rotation of four evenly spaced anchors is tried, and from the best one each
+/// anchor slides along the outline, a sample or two at a time, while that lowers the total
+/// error. `grow` moves every sample that far along the outline's
 /// outward normal first (in the outline's unit), so paths of neighbouring outlines overlap
 /// instead of leaving seams. `None` if the outline has fewer than three distinct points, no
 /// length, or a non-finite coordinate.
@@ -27,23 +28,70 @@ pub fn fit_outline(outline: &[[f32; 2]], grow: f32, color: [f32; 3], alpha: f32)
         return None;
     }
     let samples = grown(&resample(outline)?, grow);
-    let mut best: Option<(f32, [[f32; 2]; POINTS])> = None;
-    for offset in 0..PER_SEGMENT {
-        let mut points = [[0.0; 2]; POINTS];
-        let mut error = 0.0;
+    // Evenly spaced anchors at every rotation, then each anchor slid along the outline while
+    // that lowers the error: irregular outlines want their anchors where they turn.
+    let even = |offset: usize| std::array::from_fn(|j| offset + j * PER_SEGMENT);
+    let mut anchors: [usize; SEGMENTS] = (0..PER_SEGMENT)
+        .map(even)
+        .min_by(|a, b| total_error(&samples, a).total_cmp(&total_error(&samples, b)))
+        .expect("at least one rotation");
+    let mut errors: [f32; SEGMENTS] = std::array::from_fn(|j| segment_error(&samples, &anchors, j));
+    for _ in 0..ANCHOR_ROUNDS {
+        let mut moved = false;
         for j in 0..SEGMENTS {
-            let run: Vec<[f32; 2]> =
-                (0..=PER_SEGMENT).map(|i| samples[(offset + j * PER_SEGMENT + i) % SAMPLES]).collect();
-            let (control, cost) = fit_cubic(&run);
-            points[3 * j..3 * j + 3].copy_from_slice(&control[..3]);
-            error += cost;
+            // Anchor j ends cubic j − 1 and starts cubic j: only those two change.
+            let before = (j + SEGMENTS - 1) % SEGMENTS;
+            for step in [-2i64, -1, 1, 2] {
+                let mut trial = anchors;
+                trial[j] = (anchors[j] as i64 + step).rem_euclid(SAMPLES as i64) as usize;
+                if !spans_ok(&trial) {
+                    continue;
+                }
+                let (e_before, e_after) = (segment_error(&samples, &trial, before), segment_error(&samples, &trial, j));
+                if e_before + e_after < errors[before] + errors[j] {
+                    (anchors, errors[before], errors[j], moved) = (trial, e_before, e_after, true);
+                }
+            }
         }
-        if best.as_ref().is_none_or(|(lowest, _)| error < *lowest) {
-            best = Some((error, points));
+        if !moved {
+            break;
         }
     }
-    let (_, points) = best?;
+    let mut points = [[0.0; 2]; POINTS];
+    for j in 0..SEGMENTS {
+        let (control, _) = fit_cubic(&span(&samples, anchors[j], anchors[(j + 1) % SEGMENTS]));
+        points[3 * j..3 * j + 3].copy_from_slice(&control[..3]);
+    }
     Some(Path { points, color, alpha })
+}
+
+/// Rounds of sliding the anchors.
+const ANCHOR_ROUNDS: usize = 6;
+/// The fewest samples a cubic spans, so no cubic collapses.
+const MIN_SPAN: usize = 4;
+
+/// The samples from anchor `from` to anchor `to` along the loop, both included.
+fn span(samples: &[[f32; 2]], from: usize, to: usize) -> Vec<[f32; 2]> {
+    let length = (to + SAMPLES - from) % SAMPLES;
+    (0..=length).map(|i| samples[(from + i) % SAMPLES]).collect()
+}
+
+/// Whether consecutive anchors keep their order around the loop with at least [`MIN_SPAN`]
+/// samples between them.
+fn spans_ok(anchors: &[usize; SEGMENTS]) -> bool {
+    let total: usize = (0..SEGMENTS).map(|j| (anchors[(j + 1) % SEGMENTS] + SAMPLES - anchors[j]) % SAMPLES).sum();
+    total == SAMPLES
+        && (0..SEGMENTS).all(|j| (anchors[(j + 1) % SEGMENTS] + SAMPLES - anchors[j]) % SAMPLES >= MIN_SPAN)
+}
+
+/// The fitting error of the cubic from anchor `j` to the next.
+fn segment_error(samples: &[[f32; 2]], anchors: &[usize; SEGMENTS], j: usize) -> f32 {
+    fit_cubic(&span(samples, anchors[j], anchors[(j + 1) % SEGMENTS])).1
+}
+
+/// The fitting error of four cubics between consecutive anchors.
+fn total_error(samples: &[[f32; 2]], anchors: &[usize; SEGMENTS]) -> f32 {
+    (0..SEGMENTS).map(|j| segment_error(samples, anchors, j)).sum()
 }
 
 /// `SAMPLES` points evenly spaced along the closed polygon, starting at its first point.

@@ -12,10 +12,12 @@ mod soft;
 mod svg;
 
 pub use device::{Backend, BackendError};
-pub use exact::{paint_exact, render_exact, skia_outline};
+pub use exact::{coverage_exact, paint_exact, render_exact, skia_outline};
 pub use fit::fit_outline;
 pub use geometry::{Bounds, bernstein, cubic_point};
 pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS};
 pub use shapes::{random_blob, random_scene};
-pub use soft::{SoftRasterOptions, coverage_soft, paint_soft, render_soft};
+pub use soft::{
+    SoftRasterOptions, coverage_soft, paint_soft, paint_soft_with_union, render_soft, render_soft_with_union,
+};
 pub use svg::{SvgError, to_svg};
