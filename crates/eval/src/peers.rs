@@ -9,7 +9,7 @@ use std::time::Instant;
 use image::{Rgb, Rgb32FImage};
 use raster::Path as VectorPath;
 use model::OperatingPoint;
-use superpixel::{SegmentOptions, SlicOptions, segment, slic};
+use superpixel::{SlicOptions, segment, slic};
 
 /// An SVG made by some method, and the seconds it took.
 pub struct Traced {
@@ -161,7 +161,7 @@ pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FIma
 pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorPath>, f64), String> {
     let started = Instant::now();
     let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
-    let options = SegmentOptions { oversegment: OperatingPoint::default().oversegment, ..Default::default() };
+    let options = OperatingPoint::default().segment_options(SlicOptions::default().compactness);
     let segmentation = segment(image, regions, &options).map_err(|err| err.to_string())?;
     let drawing = infer::fallback::mosaic(image, &segmentation);
     Ok((drawing, started.elapsed().as_secs_f64()))

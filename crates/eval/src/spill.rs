@@ -1,37 +1,26 @@
 //! How much of a drawing lies outside the regions its paths were drawn for.
 
 use infer::scene::Placed;
-use raster::skia_outline;
+use raster::coverage_exact;
 use superpixel::Segmentation;
-use tiny_skia::{FillRule, Mask, Transform};
 
 /// The share of the painted area of region paths (the background left out) that falls outside
 /// their region dilated by `dilation` pixels (Chebyshev): 0 when every path stays in its region,
 /// 1 when none does. Each path's coverage is measured on its own, as if nothing covered it.
 pub fn spill(paths: &[Placed], segmentation: &Segmentation, dilation: u32) -> f64 {
     let (width, height) = (segmentation.width, segmentation.height);
-    let scale = Transform::from_scale(width as f32, height as f32);
     let (mut outside, mut total) = (0.0f64, 0.0f64);
-    let mut mask = Mask::new(width, height).expect("a non-empty image");
     for placed in paths {
-        let (Some(region), Some(outline)) = (placed.region, skia_outline(&placed.path)) else { continue };
-        mask.clear();
-        mask.fill_path(&outline, FillRule::Winding, true, scale);
-        let bounds = outline.bounds();
-        let clamp = |v: f32, size: u32| (v.max(0.0) as u32).min(size);
-        let (x0, y0) = (clamp(bounds.left() * width as f32 - 1.0, width), clamp(bounds.top() * height as f32 - 1.0, height));
-        let (x1, y1) =
-            (clamp(bounds.right() * width as f32 + 2.0, width), clamp(bounds.bottom() * height as f32 + 2.0, height));
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let coverage = mask.data()[(y * width + x) as usize] as f64 / 255.0;
-                if coverage == 0.0 {
-                    continue;
-                }
-                total += coverage;
-                if !near(segmentation, region, x, y, dilation) {
-                    outside += coverage;
-                }
+        let (Some(region), Some(mask)) = (placed.region, coverage_exact(&placed.path, width, height)) else { continue };
+        for (index, &value) in mask.data().iter().enumerate() {
+            if value == 0 {
+                continue;
+            }
+            let coverage = value as f64 / 255.0;
+            total += coverage;
+            let (x, y) = (index as u32 % width, index as u32 / width);
+            if !near(segmentation, region, x, y, dilation) {
+                outside += coverage;
             }
         }
     }

@@ -6,7 +6,7 @@ use model::{CoarseModel, CropBatch, ModelConfig, crop_to_image};
 use raster::Path;
 use superpixel::RegionCrop;
 
-use crate::fallback::{GROW, background, painter_order, region_path};
+use crate::fallback::{background, painter_order, region_paths};
 use crate::scene::{Origin, Placed, Scene, Scope};
 
 /// How many coarse paths the stage may keep.
@@ -39,14 +39,15 @@ pub fn draw_coarse(
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
     let segmentation = scene.segmentation();
     let order = painter_order(segmentation);
-    let fallbacks: Vec<Option<Path>> = order.iter().map(|&r| region_path(segmentation, r, GROW)).collect();
+    let fallbacks = region_paths(segmentation, &order);
     let proposals = if budget.per_region == 0 {
         vec![Vec::new(); order.len()]
     } else {
         let crops: Vec<RegionCrop> = order.iter().map(|&r| scene.region_crop(config, r)).collect();
         propose(coarse, &crops, scene.target().dimensions(), batch, device)
     };
-    scene.push(Placed { path: background(scene.target()), region: None, origin: Origin::Background });
+    let under = background(scene.target(), &fallbacks.iter().flatten().copied().collect::<Vec<_>>());
+    scene.push(Placed { path: under, region: None, origin: Origin::Background });
     let mut spare = budget.total.saturating_sub(1 + order.len());
     let mut painted = vec![false; order.len()];
     for ((&region, fallback), candidates) in order.iter().zip(fallbacks).zip(proposals) {

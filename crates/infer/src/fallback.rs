@@ -1,11 +1,13 @@
-//! The simplest drawing of an image split into superpixels: one path under everything in the
-//! image's mean colour, then every region's outline, fitted with one path, in its mean colour.
+//! The simplest drawing of an image split into superpixels: one path under everything, then
+//! every region's outline, fitted with one path, in its mean colour.
 //!
 //! Every result starts from it, so no pixel is left uncovered whatever the later stages keep,
 //! and a region's learned paths are kept only where they beat it.
 
 use image::Rgb32FImage;
-use raster::{Path, fit_outline};
+use rayon::prelude::*;
+use raster::{Path, fit_outline, paint_exact};
+use tiny_skia::Pixmap;
 use superpixel::Segmentation;
 
 /// How far (pixels) each region's outline is pushed outwards before it is fitted, so the paths
@@ -14,15 +16,27 @@ use superpixel::Segmentation;
 /// docs/operating-point.md).
 pub const GROW: f32 = 0.5;
 
-/// A path covering the whole canvas in the image's mean colour: what shows wherever no region
-/// path reaches.
-pub fn background(image: &Rgb32FImage) -> Path {
-    let count = (image.width() * image.height()).max(1) as f64;
-    let mut sum = [0.0f64; 3];
-    for pixel in image.pixels() {
-        (0..3).for_each(|c| sum[c] += pixel.0[c] as f64);
+/// A path covering the whole canvas, in the colour that is best where `above` (the paths to be
+/// painted over it) leaves it showing: the mean of the image weighted by how little `above`
+/// covers each pixel (the image's mean if `above` covers everything). On flat art the seams
+/// between regions then show the page's colour, not a tint of everything in the picture.
+pub fn background(image: &Rgb32FImage, above: &[Path]) -> Path {
+    let (width, height) = image.dimensions();
+    let mut cover = Pixmap::new(width, height).expect("a non-empty image");
+    for path in above {
+        paint_exact(&mut cover, path, (width, height), (0, 0));
     }
-    let color = sum.map(|s| (s / count) as f32);
+    let (mut shown, mut sum, mut total) = (0.0f64, [0.0f64; 3], [0.0f64; 3]);
+    for (pixel, rgba) in image.pixels().zip(cover.data().chunks_exact(4)) {
+        let weight = (255 - rgba[3]) as f64 / 255.0;
+        shown += weight;
+        for c in 0..3 {
+            sum[c] += weight * pixel.0[c] as f64;
+            total[c] += pixel.0[c] as f64;
+        }
+    }
+    let pixels = (width as f64 * height as f64).max(1.0);
+    let color = if shown > 0.0 { sum.map(|s| (s / shown) as f32) } else { total.map(|s| (s / pixels) as f32) };
     Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], color, 1.0)
 }
 
@@ -48,11 +62,16 @@ pub fn painter_order(segmentation: &Segmentation) -> Vec<u32> {
     order
 }
 
+/// Every region's fallback path (`None` where a region cannot be fitted), in `order`, fitted in
+/// parallel.
+pub fn region_paths(segmentation: &Segmentation, order: &[u32]) -> Vec<Option<Path>> {
+    order.par_iter().map(|&r| region_path(segmentation, r, GROW)).collect()
+}
+
 /// The fallback drawing alone: the background, then every region's path in painter's order.
 pub fn mosaic(image: &Rgb32FImage, segmentation: &Segmentation) -> Vec<Path> {
-    std::iter::once(background(image))
-        .chain(painter_order(segmentation).into_iter().filter_map(|r| region_path(segmentation, r, GROW)))
-        .collect()
+    let regions: Vec<Path> = region_paths(segmentation, &painter_order(segmentation)).into_iter().flatten().collect();
+    std::iter::once(background(image, &regions)).chain(regions).collect()
 }
 
 #[cfg(test)]

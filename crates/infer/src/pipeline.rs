@@ -1,14 +1,17 @@
-//! SuperSVG-B as stages over one [`Scene`]: segment → coarse (background, fallbacks, E_c) →
-//! refine (E_r). Fine-tuning ([`crate::finetune`]) and export work on the scene it returns.
+//! SuperSVG-B as stages over one [`Scene`]: segment (the better of two segmentations) → coarse
+//! (background, fallbacks, E_c) → refine (E_r). Fine-tuning ([`crate::finetune`]) and export work on the scene it returns.
 
 use std::time::Instant;
 
 use burn::tensor::Device;
 use image::Rgb32FImage;
 use model::OperatingPoint;
-use superpixel::{SegmentOptions, SlicError, segment};
+use raster::render_exact;
+use superpixel::{Segmentation, SlicError, segment};
 
 use crate::coarse::{CoarseBudget, draw_coarse};
+use crate::fallback::mosaic;
+use crate::metrics::mse;
 use crate::models::Models;
 use crate::refine::draw_refinement;
 use crate::scene::Scene;
@@ -57,6 +60,30 @@ pub struct Vectorization {
     pub timings: Vec<(&'static str, f64)>,
 }
 
+/// `image` split into `regions` superpixels as the operating point makes them (SLIC merged by
+/// colour) or by plain SLIC, whichever the fallback drawing draws better: merged regions follow
+/// a photo's colours with fewer shapes, while on flat art they grow into shapes one path fits
+/// badly (data/eval: merging gains 0.8 dB on photos and loses 0.9 dB on emoji at 500 paths).
+/// Scoring a candidate costs one rendering of its fallback drawing.
+pub fn choose_segmentation(
+    image: &Rgb32FImage,
+    regions: usize,
+    point: &OperatingPoint,
+    compactness: f32,
+) -> Result<Segmentation, SlicError> {
+    let merged = segment(image, regions, &point.segment_options(compactness))?;
+    if point.oversegment <= 1.0 {
+        return Ok(merged);
+    }
+    let plain = segment(image, regions, &OperatingPoint { oversegment: 1.0, ..*point }.segment_options(compactness))?;
+    let error = |segmentation: &Segmentation| {
+        let (width, height) = image.dimensions();
+        let drawn = render_exact(&mosaic(image, segmentation), width, height, [1.0; 3]);
+        mse(&image::DynamicImage::ImageRgb8(drawn).to_rgb32f(), image)
+    };
+    Ok(if error(&plain) < error(&merged) { plain } else { merged })
+}
+
 /// Vectorizes `image` (working resolution) with `models` on `device`.
 pub fn vectorize(
     models: &Models,
@@ -80,8 +107,7 @@ pub fn vectorize(
     }
     let pixels = (image.width() * image.height()) as usize;
     let regions = options.regions.unwrap_or_else(|| point.regions(options.paths)).clamp(1, options.paths - 1).min(pixels);
-    let segment_options = SegmentOptions { compactness: options.compactness, oversegment: point.oversegment };
-    let segmentation = segment(image, regions, &segment_options)?;
+    let segmentation = choose_segmentation(image, regions, &point, options.compactness)?;
     let mut scene = Scene::new(image.clone(), segmentation);
     lap("superpixels", &mut timings);
 

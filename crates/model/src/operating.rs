@@ -1,6 +1,7 @@
 //! Where a path budget goes at inference: measured for a pair of models, stored with them.
 
 use serde::{Deserialize, Serialize};
+use superpixel::SegmentOptions;
 
 /// How inference splits a path budget between superpixel regions, the coarse model's paths and
 /// the refinement model's paths, and how the regions are made. Which split draws best depends
@@ -21,14 +22,19 @@ pub struct OperatingPoint {
     /// SLIC is asked for this many times the regions, merged down by colour
     /// (`superpixel::segment`); at least 1.
     pub oversegment: f32,
+    /// The least isoperimetric quotient of a merged region (`SegmentOptions::min_compactness`),
+    /// in [0, 1].
+    #[serde(default)]
+    pub min_compactness: f32,
 }
 
 impl Default for OperatingPoint {
     /// For models nothing was measured for: every path a region of its own, the drawing that
     /// does not depend on how well the models draw; regions from SLIC at three times the count,
-    /// merged by colour (the best fallback drawing on data/eval/photos, docs/operating-point.md).
+    /// merged by colour into shapes no less compact than 0.3 (the best fallback drawing on
+    /// data/eval/photos; see docs/operating-point.md).
     fn default() -> Self {
-        Self { coarse_paths: 0, refine_share: 0.0, oversegment: 3.0 }
+        Self { coarse_paths: 0, refine_share: 0.0, oversegment: 3.0, min_compactness: 0.3 }
     }
 }
 
@@ -41,7 +47,15 @@ impl OperatingPoint {
         if !(self.oversegment.is_finite() && self.oversegment >= 1.0) {
             return Err(format!("oversegment must be at least 1, got {}", self.oversegment));
         }
+        if !(0.0..=1.0).contains(&self.min_compactness) {
+            return Err(format!("min_compactness must be within [0, 1], got {}", self.min_compactness));
+        }
         Ok(())
+    }
+
+    /// How regions are made at this point, with SLIC at `compactness`.
+    pub fn segment_options(&self, compactness: f32) -> SegmentOptions {
+        SegmentOptions { compactness, oversegment: self.oversegment, min_compactness: self.min_compactness }
     }
 
     /// Number of regions for a budget of `paths` (at least one).
@@ -59,10 +73,11 @@ mod tests {
     fn regions_leave_room_for_every_stage() {
         let mosaic = OperatingPoint::default();
         assert_eq!(mosaic.regions(500), 499);
-        let split = OperatingPoint { coarse_paths: 3, refine_share: 0.2, oversegment: 1.0 };
+        let split = OperatingPoint { coarse_paths: 3, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
         assert_eq!(split.regions(500), 99); // 99 · 4 + 1 = 397 ≤ 400
         assert_eq!(split.regions(2), 1);
         assert!(OperatingPoint { refine_share: 1.0, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { oversegment: 0.5, ..mosaic }.validate().is_err());
+        assert!(OperatingPoint { min_compactness: 1.5, ..mosaic }.validate().is_err());
     }
 }

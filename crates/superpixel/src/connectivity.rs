@@ -27,13 +27,7 @@ pub(crate) fn enforce_connectivity(
         out[start] = next;
         while let Some(index) = stack.pop() {
             component.push(index);
-            let (x, y) = (index % width, index / width);
-            let neighbours = [
-                (x > 0).then(|| index - 1),
-                (x + 1 < width).then(|| index + 1),
-                (y > 0).then(|| index - width),
-                (y + 1 < height).then(|| index + width),
-            ];
+            let neighbours = neighbours4(index, width, height);
             for n in neighbours.into_iter().flatten() {
                 if out[n] == UNSEEN && labels[n] == original {
                     out[n] = next;
@@ -68,6 +62,18 @@ pub(crate) fn relabel(labels: &[u32]) -> (Vec<u32>, usize) {
         })
         .collect();
     (out, map.len())
+}
+
+/// The 4-connected neighbours (left, right, up, down) of pixel `index` of a row-major
+/// `width × height` grid, `None` past the border.
+pub(crate) fn neighbours4(index: usize, width: usize, height: usize) -> [Option<usize>; 4] {
+    let (x, y) = (index % width, index / width);
+    [
+        (x > 0).then(|| index - 1),
+        (x + 1 < width).then(|| index + 1),
+        (y > 0).then(|| index - width),
+        (y + 1 < height).then(|| index + width),
+    ]
 }
 
 #[cfg(test)]

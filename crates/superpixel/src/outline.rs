@@ -118,12 +118,12 @@ mod tests {
         let seg = segmentation(&["0011", "0011", "2222", "3333"]);
         let image = Rgb32FImage::from_fn(4, 4, |_, y| image::Rgb(if y == 2 { [1.0; 3] } else { [0.0; 3] }));
         let seg = Segmentation::from_labels(&image, seg.labels, 4);
-        let limited = seg.clone().limit_regions(&image, 3);
+        let limited = seg.clone().limit_regions(&image, 3, 0.0);
         assert_eq!(limited.regions.len(), 3);
         assert_eq!(limited.label(0, 0), limited.label(3, 0), "the two black neighbours merged");
         assert_ne!(limited.label(0, 3), limited.label(0, 0), "black 3 does not touch them");
-        assert_eq!(seg.clone().limit_regions(&image, 9), seg);
-        let one = seg.limit_regions(&image, 1);
+        assert_eq!(seg.clone().limit_regions(&image, 9, 0.0), seg);
+        let one = seg.limit_regions(&image, 1, 0.5);
         assert_eq!(one.regions.len(), 1);
     }
 

@@ -40,6 +40,9 @@ struct Args {
     /// Values of the SLIC oversegmentation factor.
     #[arg(long, value_delimiter = ',', default_value = "1,2,3,4")]
     oversegment: Vec<f32>,
+    /// Values of the least compactness of merged regions.
+    #[arg(long, value_delimiter = ',', default_value = "0")]
+    min_compactness: Vec<f32>,
     /// The markdown table to write.
     #[arg(long)]
     out: PathBuf,
@@ -79,9 +82,11 @@ fn run(args: Args) -> Result<(), String> {
     for &coarse_paths in &args.coarse_paths {
         for &refine_share in &args.refine_share {
             for &oversegment in &args.oversegment {
-                let point = OperatingPoint { coarse_paths, refine_share, oversegment };
-                point.validate().map_err(|err| format!("grid point {point:?}: {err}"))?;
-                points.push(point);
+                for &min_compactness in &args.min_compactness {
+                    let point = OperatingPoint { coarse_paths, refine_share, oversegment, min_compactness };
+                    point.validate().map_err(|err| format!("grid point {point:?}: {err}"))?;
+                    points.push(point);
+                }
             }
         }
     }
@@ -117,7 +122,7 @@ fn run(args: Args) -> Result<(), String> {
     let mut text = format!(
         "# Operating point\n\nSuperSVG-B on `{}` ({} images, {} px), models `{}` and `{}`. PSNR of the exact \
          rendering, mean over images; paths per stage (background / fallback / coarse / refine), mean over \
-         images.\n\nCommand: `{}`\n\n| coarse paths | refine share | oversegment |",
+         images.\n\nCommand: `{}`\n\n| coarse paths | refine share | oversegment | min compactness |",
         args.dir.display(),
         images.len(),
         args.size,
@@ -128,10 +133,10 @@ fn run(args: Args) -> Result<(), String> {
     for paths in &args.paths {
         let _ = write!(text, " PSNR @{paths} | stages @{paths} | s @{paths} |");
     }
-    let _ = write!(text, " mean PSNR |\n| ---: | ---: | ---: |{} ---: |\n", " ---: | ---: | ---: |".repeat(args.paths.len()));
+    let _ = write!(text, " mean PSNR |\n| ---: | ---: | ---: | ---: |{} ---: |\n", " ---: | ---: | ---: |".repeat(args.paths.len()));
     for m in &measured {
         let p = m.point;
-        let _ = write!(text, "| {} | {} | {} |", p.coarse_paths, p.refine_share, p.oversegment);
+        let _ = write!(text, "| {} | {} | {} | {} |", p.coarse_paths, p.refine_share, p.oversegment, p.min_compactness);
         for b in 0..args.paths.len() {
             let stages: Vec<String> = m.stages[b].iter().map(|v| format!("{v:.0}")).collect();
             let _ = write!(text, " {:.2} | {} | {:.2} |", m.psnr[b], stages.join(" / "), m.seconds[b]);
