@@ -13,6 +13,9 @@
 #     with OpenCV under its licenses (Apache-2.0 / BSD-3-Clause) for examples and testing.
 #   - @twemoji/svg 15.0.0 (npm): Twitter's emoji, CC-BY 4.0 (graphics), rendered at 256 px with
 #     rsvg-convert (Debian librsvg2-bin).
+#   - gnome-backgrounds 43.1-1 and ukui-wallpapers 20.04.3-1.1 (Debian bookworm): desktop
+#     wallpapers, photos and drawings, CC-BY-SA 3.0 (see each package's copyright file);
+#     training only. Their SVG wallpapers are rendered at 1024 px wide.
 #
 # Usage: scripts/fetch-data.sh [DATA_DIR]   (default: data). Re-running rebuilds the folders.
 set -euo pipefail
@@ -61,7 +64,20 @@ for name in aero1.jpg aero3.jpg apple.jpg Blender_Suzanne1.jpg Blender_Suzanne2.
   [ -e "$samples/$name" ] && cp "$samples/$name" "$data/train/opencv-$name"
 done
 
-# 3. Emoji: every 30th of the sorted set for training, a disjoint set for evaluation.
+# 3. Desktop wallpapers (training only).
+(cd "$work" && apt-get download gnome-backgrounds=43.1-1 ukui-wallpapers=20.04.3-1.1 >/dev/null 2>&1)
+for deb in "$work"/gnome-backgrounds_*.deb "$work"/ukui-wallpapers_*.deb; do
+  dpkg-deb -x "$deb" "$work/wallpapers"
+done
+for file in $(find "$work/wallpapers/usr/share/backgrounds" -type f | sort); do
+  name="wallpaper-$(basename "$file")"
+  case "$file" in
+    *.jpg|*.jpeg|*.png|*.webp) cp "$file" "$data/train/$name" ;;
+    *.svg) rsvg-convert -w 1024 "$file" -o "$data/train/${name%.svg}.png" ;;
+  esac
+done
+
+# 4. Emoji: every 30th of the sorted set for training, a disjoint set for evaluation.
 (cd "$work" && npm pack --silent @twemoji/svg@15.0.0 >/dev/null 2>&1)
 tar xzf "$work"/twemoji-svg-15.0.0.tgz -C "$work"
 index=0

@@ -94,6 +94,13 @@ impl CropBatch {
         }
     }
 
+    /// `[B, 3, 1, 1]`: each crop's mean colour inside its mask (what inference's fallback fills
+    /// the region with before any network draws on it); 0 for an empty mask.
+    pub fn mean_colours(&self) -> Tensor<4> {
+        let area = self.masks.clone().sum_dim(2).sum_dim(3).clamp_min(1.0);
+        (self.pixels.clone() * self.masks.clone()).sum_dim(2).sum_dim(3) / area
+    }
+
     /// E_r's second input: `canvas` (`[B, 3, S, S]`, what is drawn so far over each crop's
     /// rectangle) with `spec.fill` outside each region's mask, the rule the crops follow.
     pub fn masked_canvas(&self, canvas: Tensor<4>, spec: &InputSpec) -> Tensor<4> {

@@ -7,6 +7,8 @@ use raster::SoftRasterOptions;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
 
+use crate::validation::ValidationConfig;
+
 /// Everything `train-coarse` reads from its config file.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -24,6 +26,9 @@ pub struct CoarseConfig {
     /// Soft rasterizer used in the losses.
     #[serde(default)]
     pub raster: RasterConfig,
+    /// Held-out crops scored during training.
+    #[serde(default)]
+    pub validation: ValidationConfig,
 }
 
 /// Everything `train-refine` reads from its config file. The architecture comes from the coarse
@@ -41,6 +46,9 @@ pub struct RefineConfig {
     /// Soft rasterizer used in the losses.
     #[serde(default)]
     pub raster: RasterConfig,
+    /// Held-out crops scored during training.
+    #[serde(default)]
+    pub validation: ValidationConfig,
 }
 
 /// The `[model]` table: a preset and overrides, resolved into a validated [`ModelConfig`].
@@ -82,10 +90,23 @@ pub struct DataConfig {
     pub synthetic: bool,
     /// Fraction of samples drawn from the generator when both sources are on.
     pub synthetic_weight: f32,
-    /// Range (inclusive) of SLIC region counts drawn per sample.
+    /// Range (inclusive) of region counts drawn per scene: with `image_size` at inference's
+    /// working size, the counts inference uses make the regions inference cuts.
     pub segments: [usize; 2],
     /// SLIC compactness (the method uses 30).
     pub compactness: f32,
+    /// SLIC is asked for this many times the count, merged by colour down to it, as inference's
+    /// operating point does (`superpixel::segment`); 1 is plain SLIC.
+    pub oversegment: f32,
+    /// The least isoperimetric quotient of a merged region, as in the operating point.
+    pub min_compactness: f32,
+    /// Regions sampled from each segmented scene before the next (segmenting is the costly
+    /// part of a sample).
+    pub regions_per_scene: usize,
+    /// Segment a random window of this side (pixels) of each scene, with the share of the
+    /// region count its area is: the regions are as large as on the whole scene, for a fraction
+    /// of the segmenting. 0 segments whole scenes.
+    pub window: u32,
     /// Images are scaled to this long side before SLIC (and generated scenes made this big).
     pub image_size: u32,
     /// Threads preparing batches.
@@ -104,6 +125,10 @@ impl Default for DataConfig {
             synthetic_weight: 0.5,
             segments: [8, 48],
             compactness: 30.0,
+            oversegment: 1.0,
+            min_compactness: 0.0,
+            regions_per_scene: 4,
+            window: 0,
             image_size: 256,
             workers: 1,
             prefetch: 4,
@@ -138,8 +163,6 @@ pub struct OptimConfig {
     pub checkpoint_every: usize,
     /// Steps between lines of `metrics.jsonl`.
     pub log_every: usize,
-    /// Steps between preview images; 0 disables them.
-    pub preview_every: usize,
 }
 
 impl Default for OptimConfig {
@@ -156,7 +179,6 @@ impl Default for OptimConfig {
             grad_clip: 1.0,
             checkpoint_every: 500,
             log_every: 10,
-            preview_every: 500,
         }
     }
 }
@@ -192,10 +214,23 @@ impl BoundaryWeight {
     }
 }
 
+/// What E_c's paths are drawn over in training.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Canvas {
+    /// The rasterizer's background colour (the method).
+    Background,
+    /// Each region's mean colour: what inference draws the region with (its fallback path)
+    /// before E_c's paths, so the model learns what to add to it.
+    MeanColour,
+}
+
 /// The `[loss]` table of the coarse stage.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CoarseLoss {
+    /// What the paths are drawn over.
+    pub canvas: Canvas,
     /// Scales of the normalized L2 (1 = full resolution only; more widen the basin).
     pub l2_levels: usize,
     /// λ_PE on the number of visible paths (a sum over paths).
@@ -206,7 +241,7 @@ pub struct CoarseLoss {
 
 impl Default for CoarseLoss {
     fn default() -> Self {
-        Self { l2_levels: 3, path_efficiency: 1e-5, boundary: BoundaryWeight::default() }
+        Self { canvas: Canvas::Background, l2_levels: 3, path_efficiency: 1e-5, boundary: BoundaryWeight::default() }
     }
 }
 
@@ -331,6 +366,7 @@ impl Validate for CoarseConfig {
         self.data.validate()?;
         self.train.validate()?;
         self.raster.validate()?;
+        self.validation.validate()?;
         check(self.loss.l2_levels >= 1, "loss.l2_levels must be at least 1")?;
         check(self.loss.path_efficiency >= 0.0, "loss.path_efficiency must not be negative")?;
         self.loss.boundary.validate()
@@ -342,6 +378,7 @@ impl Validate for RefineConfig {
         self.data.validate()?;
         self.train.validate()?;
         self.raster.validate()?;
+        self.validation.validate()?;
         check(self.loss.l2_levels >= 1, "loss.l2_levels must be at least 1")?;
         check(self.loss.guidance_start >= 0.0, "loss.guidance_start must not be negative")?;
         check(self.loss.gamma >= 0.0 && self.loss.gamma.is_finite(), "loss.gamma must be zero or positive")?;
@@ -352,6 +389,15 @@ impl Validate for RefineConfig {
 }
 
 impl DataConfig {
+    /// How scenes are split into regions.
+    pub fn segment_options(&self) -> superpixel::SegmentOptions {
+        superpixel::SegmentOptions {
+            compactness: self.compactness,
+            oversegment: self.oversegment,
+            min_compactness: self.min_compactness,
+        }
+    }
+
     fn validate(&self) -> Result<(), String> {
         check(
             self.images.is_some() || self.synthetic,
@@ -363,6 +409,9 @@ impl DataConfig {
             "data.segments must be [low, high] with 1 ≤ low ≤ high",
         )?;
         check(self.compactness > 0.0, "data.compactness must be positive")?;
+        check(self.oversegment.is_finite() && self.oversegment >= 1.0, "data.oversegment must be at least 1")?;
+        check((0.0..=1.0).contains(&self.min_compactness), "data.min_compactness must be within [0, 1]")?;
+        check(self.regions_per_scene >= 1, "data.regions_per_scene must be at least 1")?;
         check(self.image_size >= 16, "data.image_size must be at least 16")?;
         check(self.workers >= 1, "data.workers must be at least 1")?;
         check(self.prefetch >= 1, "data.prefetch must be at least 1")
@@ -414,6 +463,25 @@ mod tests {
         let config: T = toml::from_str(text).map_err(|err| err.to_string())?;
         config.validate()?;
         Ok(config)
+    }
+
+    #[test]
+    fn every_shipped_config_loads() {
+        let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
+        let mut seen = 0;
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            if name.ends_with("refine.toml") {
+                load::<RefineConfig>(&path).unwrap();
+            } else if name.ends_with("coarse.toml") {
+                load::<CoarseConfig>(&path).unwrap();
+            } else {
+                panic!("{name}: configs/ holds *coarse.toml and *refine.toml files only");
+            }
+            seen += 1;
+        }
+        assert!(seen >= 4, "only {seen} configs in {}", folder.display());
     }
 
     #[test]

@@ -10,3 +10,4 @@ mod preview;
 mod report;
 mod schedule;
 pub mod trainer;
+pub mod validation;

@@ -4,13 +4,13 @@ use std::time::Instant;
 
 use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
-use dpw::{BoundaryOptions, PathDistance, boundary_loss, dpw, multiscale_masked_l2, path_efficiency_loss};
+use dpw::{PathDistance, boundary_loss_of_union, dpw, multiscale_masked_l2, path_efficiency_loss};
 use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use raster::{PathBatch, SoftRasterOptions, paint_soft, render_soft};
+use raster::{PathBatch, SoftRasterOptions, paint_soft, paint_soft_with_union, render_soft_with_union};
 
-use crate::config::{CoarseLoss, Guidance, RefineLoss};
+use crate::config::{Canvas, CoarseLoss, Guidance, RefineLoss};
 
 /// What one step computed: the total to minimize, the terms to report, and what to preview.
 pub struct StepOutput {
@@ -59,11 +59,15 @@ pub trait Objective {
     const STAGE: Stage;
     /// Losses of `model` on a batch of region crops at `step`.
     fn step(&self, model: &Self::Model, crops: &CropBatch, step: usize) -> StepOutput;
-    /// The colour under the paths in renders.
-    fn background(&self) -> [f32; 3];
+    /// What `model` draws on `crops` at inference, where each region starts as its mean colour
+    /// (paths in the crops' unit squares, with their opacity).
+    fn draw(&self, model: &Self::Model, crops: &CropBatch) -> PathBatch;
+    /// The soft rasterizer of the losses (previews render with it too).
+    fn raster(&self) -> &SoftRasterOptions;
 }
 
-/// The coarse objective: `L2 + λ_bound·L_bound + λ_PE·L_PE`.
+/// The coarse objective: `L2 + λ_bound·L_bound + λ_PE·L_PE`, the paths drawn over the
+/// background or over each region's mean colour (`loss.canvas`).
 pub struct CoarseObjective {
     /// Loss weights and schedules.
     pub loss: CoarseLoss,
@@ -75,8 +79,12 @@ impl Objective for CoarseObjective {
     type Model = CoarseModel;
     const STAGE: Stage = Stage::Coarse;
 
-    fn background(&self) -> [f32; 3] {
-        self.raster.background
+    fn draw(&self, model: &CoarseModel, crops: &CropBatch) -> PathBatch {
+        model.forward(crops.pixels.clone())
+    }
+
+    fn raster(&self) -> &SoftRasterOptions {
+        &self.raster
     }
 
     fn step(&self, model: &CoarseModel, crops: &CropBatch, step: usize) -> StepOutput {
@@ -85,13 +93,16 @@ impl Objective for CoarseObjective {
         let mut laps = Laps::start();
         let paths = model.forward(pixels.clone());
         laps.lap("model");
-        let render = render_soft(&paths, size, size, &self.raster);
+        let (render, union) = match self.loss.canvas {
+            Canvas::Background => render_soft_with_union(&paths, size, size, &self.raster),
+            Canvas::MeanColour => {
+                let [batch, _] = paths.dims();
+                paint_soft_with_union(crops.mean_colours().expand([batch, 3, size, size]), &paths, &self.raster)
+            }
+        };
         laps.lap("rasterizer");
         let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
-        laps.lap("losses");
-        let boundary = BoundaryOptions { dilation: self.loss.boundary.dilation, raster: self.raster.clone() };
-        let bound = boundary_loss(&paths, masks, &boundary);
-        laps.lap("rasterizer");
+        let bound = boundary_loss_of_union(union, masks, self.loss.boundary.dilation);
         let efficiency = path_efficiency_loss(paths.alpha());
         let (bound_weight, efficiency_weight) = (self.loss.boundary.at(step), self.loss.path_efficiency);
         let total = l2.clone() + bound.clone() * bound_weight + efficiency.clone() * efficiency_weight;
@@ -134,8 +145,14 @@ impl Objective for RefineObjective {
     type Model = RefineModel;
     const STAGE: Stage = Stage::Refine;
 
-    fn background(&self) -> [f32; 3] {
-        self.raster.background
+    fn draw(&self, model: &RefineModel, crops: &CropBatch) -> PathBatch {
+        let [batch, _, size, _] = crops.pixels.dims();
+        let flat = crops.mean_colours().expand([batch, 3, size, size]);
+        model.forward(crops.pixels.clone(), crops.masked_canvas(flat, &self.input))
+    }
+
+    fn raster(&self) -> &SoftRasterOptions {
+        &self.raster
     }
 
     fn step(&self, model: &RefineModel, crops: &CropBatch, step: usize) -> StepOutput {
@@ -149,19 +166,15 @@ impl Objective for RefineObjective {
         let split = Split::draw(&coarse, model.refine_paths(), self.seed, step);
 
         let first = coarse.with_alpha(split.first_part(&device));
-        let area = masks.clone().sum_dim(2).sum_dim(3).clamp_min(1.0);
-        let mean = (pixels.clone() * masks.clone()).sum_dim(2).sum_dim(3) / area;
-        let canvas = paint_soft(mean.expand([batch, 3, size, size]), &first, &self.raster).detach();
+        let flat = crops.mean_colours().expand([batch, 3, size, size]);
+        let canvas = paint_soft(flat, &first, &self.raster).detach();
         laps.lap("rasterizer");
         let added = model.forward(pixels.clone(), crops.masked_canvas(canvas.clone(), &self.input));
         laps.lap("model");
-        let render = paint_soft(canvas, &added, &self.raster);
+        let (render, union) = paint_soft_with_union(canvas, &added, &self.raster);
         laps.lap("rasterizer");
         let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
-        laps.lap("losses");
-        let boundary = BoundaryOptions { dilation: self.loss.boundary.dilation, raster: self.raster.clone() };
-        let bound = boundary_loss(&added, masks, &boundary);
-        laps.lap("rasterizer");
+        let bound = boundary_loss_of_union(union, masks, self.loss.boundary.dilation);
 
         let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
         let distances = distance.between(&added, &coarse); // [B, m, n]

@@ -8,13 +8,14 @@ use superpixel::RegionCrop;
 use tiny_skia::{Paint, Pixmap, Stroke, Transform};
 
 /// Writes a PNG grid, one row per sample (up to `rows`): target crop (grey outside the mask) |
-/// soft render | exact render of the paths | exact render with the path outlines.
+/// soft render | exact render of the paths over the row's background | the same with the path
+/// outlines.
 pub fn write_preview(
     path: &Path,
     crops: &[RegionCrop],
     render: &[f32],
     paths: &PathBatch,
-    background: [f32; 3],
+    backgrounds: &[[f32; 3]],
     rows: usize,
 ) -> image::ImageResult<()> {
     let scenes = paths.to_scenes();
@@ -32,7 +33,7 @@ pub fn write_preview(
             let at = |c: usize| render[((row * 3 + c) * size + y as usize) * size + x as usize];
             Rgb(std::array::from_fn(|c| to_u8(at(c))))
         });
-        let exact = render_exact(scene, tile, tile, background);
+        let exact = render_exact(scene, tile, tile, backgrounds[row]);
         let outlined = with_outlines(&exact, scene);
         let top = row as u32 * (tile + 1) + 1;
         let upscale = |image: &RgbImage| {

@@ -8,6 +8,8 @@ use std::path::Path;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Map, Value};
 
+use crate::validation::Scores;
+
 /// One logged step.
 pub struct StepRecord {
     /// Steps completed.
@@ -81,6 +83,29 @@ impl Reporter {
             }
             None => eprintln!("step {}/{} {message}", record.step, self.total),
         }
+        Ok(())
+    }
+
+    /// Records validation scores at `step`: a JSON line of `val_*` values in the metrics file,
+    /// and a line on the display.
+    pub fn validation(&mut self, step: usize, scores: &Scores) -> std::io::Result<()> {
+        let mut line = Map::new();
+        line.insert("step".into(), step.into());
+        let values = serde_json::to_value(scores).expect("scores serialize");
+        for (name, value) in values.as_object().expect("scores are a struct") {
+            line.insert(format!("val_{name}"), value.clone());
+        }
+        writeln!(self.metrics, "{}", Value::Object(line))?;
+        self.say(&format!(
+            "validation at step {step}: {:.2} dB kept ({:+.2} over the flat fill, {:.1} paths kept of {:.1}), \
+             {:.2} dB all drawn, spill {:.3}",
+            scores.psnr_kept,
+            scores.psnr_kept - scores.psnr_flat,
+            scores.kept,
+            scores.visible,
+            scores.psnr_drawn,
+            scores.spill
+        ));
         Ok(())
     }
 

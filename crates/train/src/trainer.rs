@@ -9,7 +9,8 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Bytes, DType, Device};
-use model::{Checkpoint, CheckpointError, ModelConfig};
+use model::{Checkpoint, CheckpointError, CropBatch, ModelConfig};
+use raster::paint_soft;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{DataConfig, OptimConfig};
@@ -18,6 +19,7 @@ use crate::objective::Objective;
 use crate::optimizer::adamw;
 use crate::preview::write_preview;
 use crate::report::{Reporter, StepRecord};
+use crate::validation::Validation;
 use crate::schedule::learning_rate;
 
 /// Why training stopped early.
@@ -90,6 +92,8 @@ pub struct Run {
     pub dir: PathBuf,
     /// The device, with autodiff.
     pub device: Device,
+    /// Held-out crops scored (and previewed) every `every` steps and at the end.
+    pub validation: Option<(Validation, usize)>,
 }
 
 /// Where a run starts: a fresh model, or a checkpoint's model, optimizer and step.
@@ -230,11 +234,6 @@ pub fn train<O: Objective>(
         values.extend(output.weights.iter().copied());
 
         let lr = learning_rate(optim, step);
-        let preview_due = optim.preview_every > 0 && (step + 1) % optim.preview_every == 0;
-        let preview = preview_due.then(|| {
-            let render: Vec<f32> = output.render.clone().try_to_vec_as().expect("render is readable");
-            (render, output.paths.detach())
-        });
         let grads = GradientsParams::from_grads(output.total.backward(), &model);
         model = optimizer.step(lr, model, grads);
 
@@ -254,10 +253,10 @@ pub fn train<O: Objective>(
             };
             reporter.record(&record).map_err(|err| io(&run.dir, &err))?;
         }
-        if let Some((render, paths)) = preview {
-            let path = run.dir.join(format!("preview-{done:06}.png"));
-            write_preview(&path, &batch.crops, &render, &paths, objective.background(), 8)
-                .map_err(|err| io(&path, &err))?;
+        if let Some((validation, every)) = &run.validation {
+            if done % every == 0 || done == optim.steps {
+                validate(objective, &model, validation, done, &run.device, &mut reporter, &run.dir)?;
+            }
         }
         if done % optim.checkpoint_every == 0 && done != optim.steps {
             save(&model, &optimizer, done, seconds, &recent)?;
@@ -266,6 +265,29 @@ pub fn train<O: Objective>(
     save(&model, &optimizer, optim.steps.max(first_step), seconds, &recent)?;
     reporter.finish();
     Ok(Summary { steps: optim.steps.max(first_step), final_loss, seconds, checkpoint })
+}
+
+/// Scores `model` on the validation crops into the metrics file and writes a preview of them.
+fn validate<O: Objective>(
+    objective: &O,
+    model: &O::Model,
+    validation: &Validation,
+    step: usize,
+    device: &Device,
+    reporter: &mut Reporter,
+    dir: &Path,
+) -> Result<(), TrainError> {
+    let io = |path: &Path, err: &dyn std::fmt::Display| TrainError::Io { path: path.to_path_buf(), message: err.to_string() };
+    let device = device.clone().inner();
+    let crops = CropBatch::new(validation.crops(), &device);
+    let paths = objective.draw(&model.valid(), &crops);
+    let scores = validation.score(&paths.to_scenes());
+    reporter.validation(step, &scores).map_err(|err| io(dir, &err))?;
+    let [batch, _, size, _] = crops.pixels.dims();
+    let flat = crops.mean_colours().expand([batch, 3, size, size]);
+    let render: Vec<f32> = paint_soft(flat, &paths, objective.raster()).try_to_vec_as().expect("render is readable");
+    let path = dir.join(format!("preview-{step:06}.png"));
+    write_preview(&path, validation.crops(), &render, &paths, &validation.mean_colours(), 8).map_err(|err| io(&path, &err))
 }
 
 /// Builds a model of `config` (its initialization drawn from `seed` on `device`), or takes the

@@ -9,6 +9,7 @@ use model::{CoarseModel, RefineModel, load_coarse};
 use train::config::{self, CoarseConfig, Guidance, RefineConfig};
 use train::objective::{CoarseObjective, RefineObjective};
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
+use train::validation::{Validation, ValidationConfig};
 
 /// Model initialization draws from the device's random generator, which is shared by the whole
 /// process: tests that compare initializations must not run at the same time.
@@ -24,14 +25,14 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// `(step, value)` of `key` in every line of a run's metrics file.
+/// `(step, value)` of `key` in every line of a run's metrics file that has it.
 fn metric(dir: &Path, key: &str) -> Vec<(usize, f64)> {
     std::fs::read_to_string(dir.join("metrics.jsonl"))
         .unwrap()
         .lines()
-        .map(|line| {
+        .filter_map(|line| {
             let json: serde_json::Value = serde_json::from_str(line).unwrap();
-            (json["step"].as_u64().unwrap() as usize, json[key].as_f64().unwrap())
+            Some((json["step"].as_u64().unwrap() as usize, json[key].as_f64()?))
         })
         .collect()
 }
@@ -58,7 +59,7 @@ fn coarse(dir: &Path, steps: usize, resume: bool) -> f32 {
         (&device, config.train.seed),
     )
     .unwrap();
-    let run = Run { dir: dir.to_path_buf(), device };
+    let run = Run { dir: dir.to_path_buf(), device, validation: None };
     let json = serde_json::to_value(&config).unwrap();
     train(&objective, start, &config.train, &config.data, json, &run).unwrap().final_loss
 }
@@ -105,7 +106,7 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
         raster: config.raster.options(),
         seed: config.train.seed,
     };
-    let run = Run { dir: dir.clone(), device };
+    let run = Run { dir: dir.clone(), device, validation: None };
     let json = serde_json::to_value(&config).unwrap();
     train(&objective, start, &config.train, &config.data, json, &run).unwrap();
 
@@ -118,6 +119,49 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
     );
     assert!(late < early, "DPW did not decrease: {dpw:?}");
     for dir in [coarse_dir, dir] {
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}
+
+#[test]
+fn validation_scores_and_previews_are_written() {
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let held_out = scratch("held-out");
+    std::fs::create_dir_all(&held_out).unwrap();
+    image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([(x * 4) as u8, (y * 5) as u8, if x < 30 { 200 } else { 30 }]))
+        .save(held_out.join("photo.png"))
+        .unwrap();
+    let mut config = smoke_coarse();
+    config.train.steps = 10;
+    config.loss.canvas = train::config::Canvas::MeanColour;
+    config.validation =
+        ValidationConfig { images: Some(held_out.clone()), crops: 6, segments: [8, 16], every: 5, image_size: 64 };
+    let device = Device::flex().autodiff();
+    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let dir = scratch("validated");
+    let path = checkpoint_path::<CoarseObjective>(&dir);
+    let start =
+        model_from(|c| CoarseModel::new(c, &device), &config.model.0, None, &path, (&device, config.train.seed))
+            .unwrap();
+    let set = Validation::build(&config.validation, &config.data, &start.model_config, 2).unwrap().unwrap();
+    assert_eq!(set.crops().len(), 6);
+    let run = Run { dir: dir.clone(), device, validation: Some((set, config.validation.every)) };
+    let json = serde_json::to_value(&config).unwrap();
+    train(&objective, start, &config.train, &config.data, json, &run).unwrap();
+
+    let flat = metric(&dir, "val_psnr_flat");
+    assert_eq!(flat.iter().map(|(step, _)| *step).collect::<Vec<_>>(), [5, 10]);
+    for key in ["val_psnr_kept", "val_psnr_drawn", "val_spill", "val_kept", "val_visible"] {
+        assert_eq!(metric(&dir, key).len(), 2, "{key}");
+    }
+    // Kept paths never make a crop worse than its flat fill.
+    for ((_, kept), (_, flat)) in metric(&dir, "val_psnr_kept").iter().zip(&flat) {
+        assert!(kept >= flat, "{kept} < {flat}");
+    }
+    assert!(dir.join("preview-000005.png").exists() && dir.join("preview-000010.png").exists());
+    // Training lines are still there for the loss curve.
+    assert_eq!(metric(&dir, "loss").len(), 2);
+    for dir in [held_out, dir] {
         std::fs::remove_dir_all(dir).unwrap();
     }
 }

@@ -10,6 +10,7 @@ use train::cli::{CommonArgs, finish};
 use train::config::{self, CoarseConfig};
 use train::objective::CoarseObjective;
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
+use train::validation::Validation;
 
 /// Train the coarse model E_c of SuperSVG.
 #[derive(Parser, Debug)]
@@ -41,6 +42,8 @@ fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::
         (&device, config.train.seed),
     )?;
     let config_json = serde_json::to_value(&config)?;
-    let run = Run { dir, device };
+    let validation = Validation::build(&config.validation, &config.data, &start.model_config, config.loss.boundary.dilation)?
+        .map(|set| (set, config.validation.every));
+    let run = Run { dir, device, validation };
     Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)
 }

@@ -12,6 +12,7 @@ use train::cli::{CommonArgs, finish};
 use train::config::{self, RefineConfig};
 use train::objective::RefineObjective;
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
+use train::validation::Validation;
 
 /// Train the refinement model E_r of SuperSVG from a trained coarse model.
 #[derive(Parser, Debug)]
@@ -49,6 +50,8 @@ fn run(args: CommonArgs, init: PathBuf) -> Result<train::trainer::Summary, Box<d
         seed: config.train.seed,
     };
     let config_json = serde_json::to_value(&config)?;
-    let run = Run { dir, device };
+    let validation = Validation::build(&config.validation, &config.data, &start.model_config, config.loss.boundary.dilation)?
+        .map(|set| (set, config.validation.every));
+    let run = Run { dir, device, validation };
     Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)
 }

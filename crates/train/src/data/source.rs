@@ -6,7 +6,7 @@ use model::{CropBatch, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use superpixel::{RegionCrop, Segmentation, SlicOptions, slic};
+use superpixel::{RegionCrop, Segmentation, segment};
 
 use super::images::ImageSet;
 use super::synthetic::synthetic_scene;
@@ -48,8 +48,6 @@ pub struct DataSource {
     seed: u64,
 }
 
-/// Regions cut from one segmented scene before moving to the next (SLIC is the costly part).
-const REGIONS_PER_SCENE: usize = 4;
 /// Regions smaller than this many pixels are not used as samples (too little to learn from).
 const MIN_REGION_PIXELS: usize = 16;
 
@@ -81,20 +79,20 @@ impl DataSource {
         rng.set_stream(if self.config.fixed_batch { 0 } else { index });
         let mut crops = Vec::with_capacity(self.batch_size);
         while crops.len() < self.batch_size {
-            let scene = self.scene(&mut rng);
+            let whole = self.scene(&mut rng);
             let [low, high] = self.config.segments;
-            let options = SlicOptions {
-                n_segments: rng.random_range(low..=high).min((scene.width() * scene.height()) as usize),
-                compactness: self.config.compactness,
-                ..Default::default()
-            };
-            let segmentation =
-                slic(&scene, &options).expect("generated and loaded scenes are valid SLIC inputs");
+            let count = rng.random_range(low..=high);
+            // Regions as large as the count makes them on the whole scene, cut from a window.
+            let scene = window(&whole, self.config.window, &mut rng);
+            let share = (scene.width() * scene.height()) as f64 / (whole.width() * whole.height()) as f64;
+            let count = ((count as f64 * share).round() as usize).clamp(1, (scene.width() * scene.height()) as usize);
+            let segmentation = segment(&scene, count, &self.config.segment_options())
+                .expect("generated and loaded scenes are valid SLIC inputs");
             let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
                 .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
                 .collect();
             regions.shuffle(&mut rng);
-            for &region in regions.iter().take(REGIONS_PER_SCENE) {
+            for &region in regions.iter().take(self.config.regions_per_scene) {
                 if crops.len() == self.batch_size {
                     break;
                 }
@@ -104,7 +102,7 @@ impl DataSource {
         Batch { index, crops }
     }
 
-    /// A scene to cut regions from: generated or from the folder, by `synthetic_weight`.
+    /// A scene to take regions from: generated or from the folder, by `synthetic_weight`.
     fn scene(&self, rng: &mut ChaCha8Rng) -> Rgb32FImage {
         let synthetic = match (&self.images, self.config.synthetic) {
             (None, _) => true,
@@ -116,6 +114,18 @@ impl DataSource {
             _ => synthetic_scene(rng, self.config.image_size),
         }
     }
+}
+
+/// A random `side × side` window of `scene` (the whole scene if it is not larger; 0 means the
+/// whole scene).
+fn window(scene: &Rgb32FImage, side: u32, rng: &mut ChaCha8Rng) -> Rgb32FImage {
+    let (width, height) = scene.dimensions();
+    if side == 0 || (width <= side && height <= side) {
+        return scene.clone();
+    }
+    let (w, h) = (side.min(width), side.min(height));
+    let (x, y) = (rng.random_range(0..=width - w), rng.random_range(0..=height - h));
+    image::imageops::crop_imm(scene, x, y, w, h).to_image()
 }
 
 #[cfg(test)]

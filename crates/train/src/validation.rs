@@ -1,0 +1,264 @@
+//! A fixed set of region crops from held-out images, and how well a model draws them.
+//!
+//! Scored the way inference uses a model: each crop starts as its region's mean colour (the
+//! fallback), the model's paths are painted over it with the exact renderer, and a path counts
+//! only if it lowers the error inside the region (inference's acceptance test). The figure to
+//! beat is the flat fill itself.
+
+use std::path::PathBuf;
+
+use image::Rgb32FImage;
+use model::ModelConfig;
+use raster::{Path, coverage_exact, paint_exact};
+use serde::{Deserialize, Serialize};
+use superpixel::{RegionCrop, segment};
+use tiny_skia::{Color, Pixmap};
+
+use crate::config::DataConfig;
+use crate::data::{DataError, ImageSet};
+
+/// Regions smaller than this many pixels are not used (as in training).
+const MIN_REGION_PIXELS: usize = 16;
+
+/// The `[validation]` table.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ValidationConfig {
+    /// A folder of held-out images (never in the training data), relative to the working
+    /// directory.
+    pub images: Option<PathBuf>,
+    /// Crops in the set, taken evenly from the images.
+    pub crops: usize,
+    /// Region counts of the images' segmentations, spread geometrically over the images from
+    /// the first to the second (made like the training regions otherwise).
+    pub segments: [usize; 2],
+    /// Steps between scores (and previews of the validation crops).
+    pub every: usize,
+    /// Images are scaled to this long side before segmenting: inference's working size, so the
+    /// crops are the regions inference cuts whatever resolution training uses.
+    pub image_size: u32,
+}
+
+impl Default for ValidationConfig {
+    fn default() -> Self {
+        Self { images: None, crops: 64, segments: [250, 2000], every: 250, image_size: 512 }
+    }
+}
+
+impl ValidationConfig {
+    /// Checks the values; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.crops == 0 || self.every == 0 {
+            return Err("validation.crops and validation.every must be positive".into());
+        }
+        if self.image_size < 16 {
+            return Err("validation.image_size must be at least 16".into());
+        }
+        if self.segments[0] == 0 || self.segments[0] > self.segments[1] {
+            return Err("validation.segments must be [low, high] with 1 ≤ low ≤ high".into());
+        }
+        Ok(())
+    }
+}
+
+/// The validation crops.
+pub struct Validation {
+    crops: Vec<RegionCrop>,
+    dilation: usize,
+}
+
+/// How a model drew the validation crops.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Scores {
+    /// PSNR (dB) inside the regions of the flat mean-colour fill: the bar to clear.
+    pub psnr_flat: f64,
+    /// PSNR inside the regions with every visible path painted over the fill.
+    pub psnr_drawn: f64,
+    /// PSNR inside the regions with only the paths that helped (inference's acceptance).
+    pub psnr_kept: f64,
+    /// Share of the visible paths' area outside their region's mask dilated by the boundary
+    /// loss's dilation (in crop cells).
+    pub spill: f64,
+    /// Visible paths per crop.
+    pub visible: f64,
+    /// Paths per crop that helped.
+    pub kept: f64,
+}
+
+impl Validation {
+    /// Cuts the set from `config.images`, with regions made as `data` makes them and crops cut
+    /// by `model`'s input contract; `dilation` is the boundary loss's. Deterministic.
+    pub fn build(
+        config: &ValidationConfig,
+        data: &DataConfig,
+        model: &ModelConfig,
+        dilation: usize,
+    ) -> Result<Option<Self>, DataError> {
+        let Some(folder) = &config.images else { return Ok(None) };
+        let images = ImageSet::load(folder, config.image_size)?;
+        let [low, high] = config.segments;
+        let per_image = config.crops.div_ceil(images.len());
+        let mut crops = Vec::with_capacity(config.crops);
+        for index in 0..images.len() {
+            let scene: Rgb32FImage = images.get(index);
+            let t = if images.len() > 1 { index as f64 / (images.len() - 1) as f64 } else { 0.0 };
+            let count = (low as f64 * (high as f64 / low as f64).powf(t)).round() as usize;
+            let count = count.clamp(1, (scene.width() * scene.height()) as usize);
+            let segmentation = segment(&scene, count, &data.segment_options())
+                .map_err(|err| DataError::new(format!("validation: {}: {err}", folder.display())))?;
+            let usable: Vec<u32> = (0..segmentation.regions.len() as u32)
+                .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
+                .collect();
+            let step = (usable.len() / per_image.max(1)).max(1);
+            for &region in usable.iter().step_by(step).take(per_image) {
+                crops.push(model.region_crop(&segmentation, &scene, region));
+            }
+        }
+        crops.truncate(config.crops);
+        Ok(Some(Self { crops, dilation }))
+    }
+
+    /// The crops.
+    pub fn crops(&self) -> &[RegionCrop] {
+        &self.crops
+    }
+
+    /// Each crop's mean colour inside its mask.
+    pub fn mean_colours(&self) -> Vec<[f32; 3]> {
+        self.crops.iter().map(mean_colour).collect()
+    }
+
+    /// Scores `scenes` (one per crop, paths in the crop's unit square with their opacity).
+    ///
+    /// # Panics
+    /// If there are fewer scenes than crops.
+    pub fn score(&self, scenes: &[Vec<Path>]) -> Scores {
+        assert!(scenes.len() >= self.crops.len(), "one scene per validation crop");
+        let (mut flat, mut drawn, mut kept, mut cells) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let (mut outside, mut covered, mut visible, mut helped) = (0.0f64, 0.0f64, 0usize, 0usize);
+        for (crop, scene) in self.crops.iter().zip(scenes) {
+            let size = crop.size as u32;
+            let color = mean_colour(crop);
+            let mut canvas = Pixmap::new(size, size).expect("a non-empty crop");
+            let [r, g, b] = color.map(|c| c.clamp(0.0, 1.0));
+            canvas.fill(Color::from_rgba(r, g, b, 1.0).expect("a clamped colour"));
+            let start = masked_error(crop, &canvas);
+            flat += start;
+            cells += 3.0 * crop.mask.iter().map(|&m| m as f64).sum::<f64>();
+            let shown: Vec<&Path> = scene.iter().filter(|path| path.alpha > 0.5).collect();
+            visible += shown.len();
+
+            let mut all = canvas.clone();
+            for path in &shown {
+                paint_exact(&mut all, path, (size, size), (0, 0));
+            }
+            drawn += masked_error(crop, &all);
+
+            let (mut best, mut current) = (canvas, start);
+            for path in &shown {
+                let mut trial = best.clone();
+                paint_exact(&mut trial, path, (size, size), (0, 0));
+                let error = masked_error(crop, &trial);
+                if error < current {
+                    (best, current) = (trial, error);
+                    helped += 1;
+                }
+            }
+            kept += current;
+
+            let near = dilate(&crop.mask, crop.size, self.dilation);
+            for path in &shown {
+                let Some(mask) = coverage_exact(path, size, size) else { continue };
+                for (value, &inside) in mask.data().iter().zip(&near) {
+                    let coverage = *value as f64 / 255.0;
+                    covered += coverage;
+                    if !inside {
+                        outside += coverage;
+                    }
+                }
+            }
+        }
+        let psnr = |error: f64| -10.0 * (error / cells.max(1.0)).max(1e-12).log10();
+        let crops = self.crops.len().max(1) as f64;
+        Scores {
+            psnr_flat: psnr(flat),
+            psnr_drawn: psnr(drawn),
+            psnr_kept: psnr(kept),
+            spill: if covered > 0.0 { outside / covered } else { 0.0 },
+            visible: visible as f64 / crops,
+            kept: helped as f64 / crops,
+        }
+    }
+}
+
+/// The mean colour of a crop inside its mask.
+fn mean_colour(crop: &RegionCrop) -> [f32; 3] {
+    let cells = crop.size * crop.size;
+    let area: f32 = crop.mask.iter().sum::<f32>().max(1.0);
+    std::array::from_fn(|c| {
+        crop.mask.iter().zip(&crop.pixels[c * cells..(c + 1) * cells]).map(|(m, p)| m * p).sum::<f32>() / area
+    })
+}
+
+/// Sum of squared differences inside the crop's mask between the canvas and the crop.
+fn masked_error(crop: &RegionCrop, canvas: &Pixmap) -> f64 {
+    let cells = crop.size * crop.size;
+    let data = canvas.data();
+    let mut sum = 0.0f64;
+    for (cell, &inside) in crop.mask.iter().enumerate() {
+        if inside == 0.0 {
+            continue;
+        }
+        for c in 0..3 {
+            let drawn = data[4 * cell + c] as f64 / 255.0;
+            sum += (drawn - crop.pixels[c * cells + cell] as f64).powi(2);
+        }
+    }
+    sum
+}
+
+/// The mask grown by `radius` cells (Chebyshev), as booleans.
+fn dilate(mask: &[f32], size: usize, radius: usize) -> Vec<bool> {
+    let mut out = vec![false; size * size];
+    for y in 0..size {
+        for x in 0..size {
+            let (y0, y1) = (y.saturating_sub(radius), (y + radius).min(size - 1));
+            let (x0, x1) = (x.saturating_sub(radius), (x + radius).min(size - 1));
+            out[y * size + x] = (y0..=y1).any(|v| (x0..=x1).any(|u| mask[v * size + u] > 0.5));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use image::{Rgb, RgbImage};
+
+    use super::*;
+
+    #[test]
+    fn flat_fill_is_the_bar_and_helpful_paths_clear_it() {
+        let dir = std::env::temp_dir().join(format!("supersvg-validation-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        RgbImage::from_fn(64, 48, |x, y| if x < 32 && y < 24 { Rgb([230, 40, 40]) } else { Rgb([20, 40, 200]) })
+            .save(dir.join("a.png"))
+            .unwrap();
+        let config = ValidationConfig { images: Some(dir.clone()), crops: 3, segments: [2, 2], every: 10, image_size: 64 };
+        let data = DataConfig { image_size: 64, ..Default::default() };
+        let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
+        let validation = Validation::build(&config, &data, &model, 1).unwrap().unwrap();
+        assert!(!validation.crops().is_empty());
+
+        let nothing = vec![Vec::new(); validation.crops().len()];
+        let scores = validation.score(&nothing);
+        assert_eq!((scores.psnr_drawn, scores.psnr_kept, scores.kept), (scores.psnr_flat, scores.psnr_flat, 0.0));
+        // A path in the wrong colour over the whole crop: drawn is worse, kept leaves it out,
+        // and it spills wherever the region does not fill the crop.
+        let wrong = Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], [0.0, 1.0, 0.0], 1.0);
+        let scores_wrong = validation.score(&vec![vec![wrong]; validation.crops().len()]);
+        assert!(scores_wrong.psnr_drawn < scores.psnr_flat);
+        assert_eq!(scores_wrong.psnr_kept, scores.psnr_flat);
+        assert_eq!(scores_wrong.visible, 1.0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
