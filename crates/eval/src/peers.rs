@@ -9,7 +9,7 @@ use std::time::Instant;
 use image::{Rgb, Rgb32FImage};
 use raster::Path as VectorPath;
 use model::OperatingPoint;
-use superpixel::{SlicOptions, segment, slic};
+use superpixel::{SlicOptions, slic};
 
 /// An SVG made by some method, and the seconds it took.
 pub struct Traced {
@@ -155,14 +155,15 @@ pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FIma
 }
 
 /// SuperSVG's fallback drawing alone with at most `paths` paths: the background and `paths − 1`
-/// superpixels (made as the default operating point makes them), each its outline fitted with
+/// superpixels (made and chosen as the default operating point makes them), each its outline fitted with
 /// one path in its mean colour. What the pipeline starts from, and what its learned stages must
 /// improve on.
 pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorPath>, f64), String> {
     let started = Instant::now();
     let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
-    let options = OperatingPoint::default().segment_options(SlicOptions::default().compactness);
-    let segmentation = segment(image, regions, &options).map_err(|err| err.to_string())?;
+    let point = OperatingPoint::default();
+    let segmentation = infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)
+        .map_err(|err| err.to_string())?;
     let drawing = infer::fallback::mosaic(image, &segmentation);
     Ok((drawing, started.elapsed().as_secs_f64()))
 }

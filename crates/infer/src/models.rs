@@ -47,19 +47,26 @@ impl Models {
 /// Environment variable naming a folder with `coarse.ckpt` and `refine.ckpt`.
 pub const MODELS_ENV: &str = "SUPERSVG_MODELS";
 
-/// The bundled checkpoint `name` (`coarse.ckpt` or `refine.ckpt`): in `$SUPERSVG_MODELS`, in a
-/// `models/` folder next to the executable or up to three levels above it (a cargo build
+/// The bundled checkpoint `name` (`coarse.ckpt` or `refine.ckpt`): in `$SUPERSVG_MODELS` when
+/// it is set (and nowhere else: a mistyped folder is an error, not a silent fallback), else in
+/// a `models/` folder next to the executable or up to three levels above it (a cargo build
 /// inside the repository), or in the source tree this program was built from.
 pub fn bundled(name: &str) -> Result<PathBuf, String> {
-    let mut places: Vec<PathBuf> = Vec::new();
     if let Some(dir) = std::env::var_os(MODELS_ENV) {
-        places.push(PathBuf::from(dir));
+        let path = PathBuf::from(&dir).join(name);
+        return if path.is_file() {
+            Ok(path)
+        } else {
+            Err(format!("{MODELS_ENV}={} has no {name}", PathBuf::from(dir).display()))
+        };
     }
+    let mut places: Vec<PathBuf> = Vec::new();
     if let Ok(exe) = std::env::current_exe() {
         places.extend(exe.ancestors().skip(1).take(4).map(|dir| dir.join("models")));
     }
     places.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models"));
-    places.iter().map(|dir| dir.join(name)).find(|path| path.is_file()).ok_or_else(|| {
+    let found = places.iter().map(|dir| dir.join(name)).find(|path| path.is_file());
+    found.map(|path| std::fs::canonicalize(&path).unwrap_or(path)).ok_or_else(|| {
         let looked: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
         format!(
             "no bundled {name} (looked in {}); pass it explicitly or set {MODELS_ENV} to its folder",

@@ -16,6 +16,20 @@ use crate::models::Models;
 use crate::refine::draw_refinement;
 use crate::scene::Scene;
 
+/// The most paths [`vectorize`] draws: at 20 000, segmenting, fitting and the exact canvas take
+/// about 10 s at 512 px; more paths than that is more regions than such an image has of
+/// [`MIN_REGION_PIXELS`].
+pub const MAX_PATHS: usize = 20_000;
+
+/// The fewest pixels a region is cut with (4 × 4): SLIC cannot place more centres than that
+/// meaningfully, and one path per pixel would only copy the raster.
+pub const MIN_REGION_PIXELS: usize = 16;
+
+/// The most regions an image of `width × height` pixels is split into.
+pub fn max_regions(width: u32, height: u32) -> usize {
+    (width as usize * height as usize / MIN_REGION_PIXELS).max(1)
+}
+
 /// Settings of one vectorization.
 #[derive(Clone, Debug)]
 pub struct Options {
@@ -23,7 +37,7 @@ pub struct Options {
     /// drawn only when no further path lowers the error.
     pub paths: usize,
     /// Number of superpixels; by default the operating point's for the budget. Clamped to
-    /// `paths − 1` and to the pixel count.
+    /// `paths − 1` and to [`max_regions`].
     pub regions: Option<usize>,
     /// How the budget is split; by default the one stored with the models.
     pub operating_point: Option<OperatingPoint>,
@@ -42,8 +56,8 @@ impl Default for Options {
 /// Why an image could not be vectorized.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum VectorizeError {
-    /// The budget cannot hold the background and one region.
-    #[error("a budget of {0} paths is too small: at least 2 are needed (the background and one region)")]
+    /// The budget cannot hold the background and one region, or is above [`MAX_PATHS`].
+    #[error("a budget of {0} paths is out of range: at least 2 (the background and one region), at most {MAX_PATHS}")]
     Budget(usize),
     /// The image could not be segmented.
     #[error(transparent)]
@@ -91,7 +105,7 @@ pub fn vectorize(
     options: &Options,
     device: &Device,
 ) -> Result<Vectorization, VectorizeError> {
-    if options.paths < 2 {
+    if !(2..=MAX_PATHS).contains(&options.paths) {
         return Err(VectorizeError::Budget(options.paths));
     }
     let mut timings = Vec::new();
@@ -105,8 +119,8 @@ pub fn vectorize(
     if models.refine.is_none() {
         point.refine_share = 0.0;
     }
-    let pixels = (image.width() * image.height()) as usize;
-    let regions = options.regions.unwrap_or_else(|| point.regions(options.paths)).clamp(1, options.paths - 1).min(pixels);
+    let most = max_regions(image.width(), image.height());
+    let regions = options.regions.unwrap_or_else(|| point.regions(options.paths)).clamp(1, options.paths - 1).min(most);
     let segmentation = choose_segmentation(image, regions, &point, options.compactness)?;
     let mut scene = Scene::new(image.clone(), segmentation);
     lap("superpixels", &mut timings);

@@ -1,9 +1,9 @@
 //! `infer`: turns images into SVG with the trained SuperSVG networks.
 //!
 //! `infer photo.jpg -o photo.svg [--paths 500] [--preview photo.png] [--metrics photo.json]`
-//! `infer a.png b.jpg … -o out/` (a folder for several inputs)
+//! `infer a.png b.jpg … -o out/` (a folder for several inputs), `infer - -o - < in.png > out.svg`
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -15,24 +15,29 @@ use infer::decode::load;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
-use infer::pipeline::{Options, vectorize};
+use infer::pipeline::{MAX_PATHS, MIN_REGION_PIXELS, Options, max_regions, vectorize};
 use infer::write::{write_atomic, write_png};
 use raster::{Backend, render_exact, to_svg};
 
 /// Vectorize images into SVG with SuperSVG.
+///
+/// Outputs: a path ending in `/` (or an existing folder) is a folder that gets one file per
+/// input, named after it; anything else is a file, which needs exactly one input. Several
+/// inputs need folders. `-` reads the input from stdin or writes the SVG to stdout. Every
+/// output is checked before any work: extensions, name collisions, an output that is an input,
+/// folders that cannot be written.
 #[derive(Parser, Debug)]
 #[command(name = "infer", version)]
 struct Args {
-    /// Input images (png, jpeg, webp, gif, bmp, tiff).
+    /// Input images (png, jpeg, webp, gif, bmp, tiff), or `-` for stdin.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
-    /// Output SVG file for one input, or a folder for several.
+    /// The SVG: a `.svg` file for one input, a folder (`out/`) for any number, or `-` (stdout).
     #[arg(short, long)]
     output: PathBuf,
-    /// The most paths in the result (at least 2); fewer only when no further path lowers the
-    /// error.
-    #[arg(long, default_value_t = 500)]
-    paths: usize,
+    /// The most paths in the result; fewer only when no further path lowers the error.
+    #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(2..=MAX_PATHS as u64))]
+    paths: u64,
     /// Coarse-model checkpoint (default: the bundled one).
     #[arg(long)]
     coarse: Option<PathBuf>,
@@ -45,31 +50,45 @@ struct Args {
     /// Compute backend: flex, ndarray or wgpu.
     #[arg(long, default_value = "flex")]
     backend: Backend,
-    /// Long side of the working resolution (the SVG keeps the input's size).
-    #[arg(long, default_value_t = 512)]
+    /// Long side of the working resolution in pixels (the SVG keeps the input's size).
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=MAX_SIZE as i64))]
     size: u32,
-    /// Number of superpixels (default: the operating point stored with the coarse model, for
-    /// the budget).
-    #[arg(long)]
-    regions: Option<usize>,
-    /// Write a PNG rendering of the result (a folder for several inputs).
+    /// Number of superpixels, below `--paths` (default: the operating point stored with the
+    /// coarse model, for the budget). At most one per 16 pixels of the working image: more is
+    /// lowered, with a warning.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..MAX_PATHS as u64))]
+    regions: Option<u64>,
+    /// Write a PNG rendering of the result (`.png` file, or a folder).
     #[arg(long)]
     preview: Option<PathBuf>,
-    /// Write input and rendering side by side as PNG (a folder for several inputs).
+    /// Write input and rendering side by side as PNG (`.png` file, or a folder).
     #[arg(long)]
     compare: Option<PathBuf>,
-    /// Write MSE, PSNR, SSIM, path count and seconds per stage as JSON (a folder for several).
+    /// Write MSE, PSNR, SSIM, path count and seconds per stage as JSON (`.json` file, or a folder).
     #[arg(long)]
     metrics: Option<PathBuf>,
-    /// Seed of the device's random generator (results are deterministic per seed and backend).
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
     /// SuperSVG-F: fine-tune every path against the image, this many steps per region.
     #[arg(long, conflicts_with = "finetune_secs")]
     finetune_steps: Option<usize>,
-    /// SuperSVG-F: fine-tune every path against the image for this many seconds.
-    #[arg(long)]
+    /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
+    #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
+    /// No line per file and no progress bar; errors and warnings only.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// The largest `--size`: a working image of 8192² is already 64 Mpx of f32 canvases.
+const MAX_SIZE: u32 = 8192;
+
+/// A finite number of seconds within [0, 3600].
+fn seconds(text: &str) -> Result<f64, String> {
+    let value: f64 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
+    if value.is_finite() && (0.0..=3600.0).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{text} is not a number of seconds within 0 to 3600"))
+    }
 }
 
 fn main() -> ExitCode {
@@ -87,23 +106,200 @@ fn main() -> ExitCode {
     }
 }
 
-/// Loads the models, then vectorizes every input; returns how many inputs failed.
-fn run(args: &Args) -> Result<usize, String> {
-    let many = args.inputs.len() > 1;
-    if many {
-        for folder in
-            [Some(&args.output), args.preview.as_ref(), args.compare.as_ref(), args.metrics.as_ref()]
-                .into_iter()
-                .flatten()
-        {
-            std::fs::create_dir_all(folder).map_err(|err| format!("{}: {err}", folder.display()))?;
+/// Where one input comes from.
+#[derive(Clone, Debug)]
+enum Source {
+    File(PathBuf),
+    Stdin,
+}
+
+impl Source {
+    fn name(&self) -> String {
+        match self {
+            Source::File(path) => path.display().to_string(),
+            Source::Stdin => "<stdin>".into(),
         }
     }
+}
+
+/// Where the SVG of one input goes.
+#[derive(Clone, Debug, PartialEq)]
+enum Sink {
+    File(PathBuf),
+    Stdout,
+}
+
+/// One input and every output it gets, decided before any work.
+struct Job {
+    source: Source,
+    svg: Sink,
+    preview: Option<PathBuf>,
+    compare: Option<PathBuf>,
+    metrics: Option<PathBuf>,
+}
+
+/// What an output argument names.
+enum Place {
+    Folder(PathBuf),
+    File(PathBuf),
+    Stdout,
+}
+
+fn place(path: &Path, stdout_allowed: bool) -> Place {
+    let text = path.to_string_lossy();
+    if stdout_allowed && text == "-" {
+        Place::Stdout
+    } else if text.ends_with('/') || path.is_dir() {
+        Place::Folder(path.to_path_buf())
+    } else {
+        Place::File(path.to_path_buf())
+    }
+}
+
+/// Every input with its outputs, or the first reason the command cannot run as asked. Creates
+/// the output folders (only once every check passed).
+fn plan(args: &Args) -> Result<Vec<Job>, String> {
+    let many = args.inputs.len() > 1;
+    let sources: Vec<Source> = args
+        .inputs
+        .iter()
+        .map(|path| if path.as_os_str() == "-" { Source::Stdin } else { Source::File(path.clone()) })
+        .collect();
+    if sources.iter().filter(|s| matches!(s, Source::Stdin)).count() > 1 {
+        return Err("stdin (-) can be read only once".into());
+    }
+    let mut folders = Vec::new();
+    // (flag, path, extension): each output argument resolved to a destination per input.
+    let mut resolve = |flag: &str, path: &Path, extension: &str, stdout: bool| -> Result<Vec<Option<PathBuf>>, String> {
+        match place(path, stdout) {
+            Place::Stdout if many => Err(format!("{flag} -: several inputs cannot all go to stdout")),
+            Place::Stdout => Ok(vec![None]),
+            Place::File(file) if many => Err(format!(
+                "{flag} {}: several inputs need a folder (end the path with /)",
+                file.display()
+            )),
+            Place::File(file) => {
+                // A device or a pipe (`/dev/null`) has no extension to check.
+                let special = std::fs::metadata(&file).is_ok_and(|m| !m.is_file());
+                let ok = special || file.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension));
+                if !ok {
+                    return Err(format!("{flag} {}: the file name must end in .{extension}", file.display()));
+                }
+                Ok(vec![Some(file)])
+            }
+            Place::Folder(folder) => {
+                if folder.exists() && !folder.is_dir() {
+                    return Err(format!("{flag} {}: not a folder", folder.display()));
+                }
+                folders.push(folder.clone());
+                Ok(sources
+                    .iter()
+                    .map(|source| {
+                        let stem = match source {
+                            Source::File(path) => path.file_stem().map(|s| s.to_os_string()).unwrap_or_default(),
+                            Source::Stdin => "stdin".into(),
+                        };
+                        Some(folder.join(Path::new(&stem).with_extension(extension)))
+                    })
+                    .collect())
+            }
+        }
+    };
+    let svg = resolve("-o", &args.output, "svg", true)?;
+    let optional = |files: Option<Vec<Option<PathBuf>>>| files.unwrap_or_else(|| vec![None; sources.len()]);
+    let preview = optional(args.preview.as_deref().map(|p| resolve("--preview", p, "png", false)).transpose()?);
+    let compare = optional(args.compare.as_deref().map(|p| resolve("--compare", p, "png", false)).transpose()?);
+    let metrics = optional(args.metrics.as_deref().map(|p| resolve("--metrics", p, "json", false)).transpose()?);
+
+    let inputs: Vec<(PathBuf, String)> = sources
+        .iter()
+        .filter_map(|s| match s {
+            Source::File(path) => Some((std::fs::canonicalize(path).unwrap_or_else(|_| path.clone()), s.name())),
+            Source::Stdin => None,
+        })
+        .collect();
+    let mut taken: Vec<(PathBuf, String)> = Vec::new();
+    let mut jobs = Vec::new();
+    for (index, source) in sources.iter().enumerate() {
+        let job = Job {
+            source: source.clone(),
+            svg: svg[index].clone().map_or(Sink::Stdout, Sink::File),
+            preview: preview[index].clone(),
+            compare: compare[index].clone(),
+            metrics: metrics[index].clone(),
+        };
+        let files = [job.svg.file(), job.preview.as_ref(), job.compare.as_ref(), job.metrics.as_ref()];
+        for file in files.into_iter().flatten() {
+            let absolute = absolute(file);
+            if let Some((_, input)) = inputs.iter().find(|(path, _)| *path == absolute) {
+                return Err(format!("{}: is the input {input}; refusing to overwrite it", file.display()));
+            }
+            if let Some((_, other)) = taken.iter().find(|(path, _)| *path == absolute) {
+                return Err(format!(
+                    "{}: both {other} and {} would be written there; rename one input or use separate runs",
+                    file.display(),
+                    source.name()
+                ));
+            }
+            taken.push((absolute, source.name()));
+        }
+        jobs.push(job);
+    }
+    for folder in &folders {
+        std::fs::create_dir_all(folder).map_err(|err| format!("{}: {err}", folder.display()))?;
+    }
+    for (file, _) in &taken {
+        writable(file)?;
+    }
+    Ok(jobs)
+}
+
+impl Sink {
+    fn file(&self) -> Option<&PathBuf> {
+        match self {
+            Sink::File(path) => Some(path),
+            Sink::Stdout => None,
+        }
+    }
+}
+
+/// `path` made absolute, with its folder resolved through links where it exists.
+fn absolute(path: &Path) -> PathBuf {
+    if let Ok(resolved) = std::fs::canonicalize(path) {
+        return resolved;
+    }
+    let folder = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let folder = std::fs::canonicalize(folder).unwrap_or_else(|_| folder.to_path_buf());
+    folder.join(path.file_name().unwrap_or_default())
+}
+
+/// Whether `file` can be written: it is not a folder, and its folder exists and takes a new
+/// file (what the atomic write needs), unless it is a device or a pipe.
+fn writable(file: &Path) -> Result<(), String> {
+    let fail = |message: String| format!("{}: {message}", file.display());
+    if file.is_dir() {
+        return Err(fail("is a folder".into()));
+    }
+    if std::fs::metadata(file).is_ok_and(|m| !m.is_file()) {
+        return Ok(()); // a device or a pipe: written in place, its errors reported then
+    }
+    let folder = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !folder.is_dir() {
+        return Err(fail(format!("the folder {} does not exist", folder.display())));
+    }
+    let probe = folder.join(format!(".supersvg-probe-{}", std::process::id()));
+    std::fs::File::create(&probe).map_err(|err| fail(format!("cannot write in {}: {err}", folder.display())))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// Loads the models, then vectorizes every input; returns how many inputs failed.
+fn run(args: &Args) -> Result<usize, String> {
+    let jobs = plan(args)?;
     let device = args.backend.device().map_err(|err| err.to_string())?;
-    device.seed(args.seed);
     let coarse = match &args.coarse {
         Some(path) => path.clone(),
-        None => PathBuf::from(bundled("coarse.ckpt")?),
+        None => bundled("coarse.ckpt")?,
     };
     let refine = match (&args.refine, args.no_refine) {
         (_, true) => None,
@@ -111,27 +307,33 @@ fn run(args: &Args) -> Result<usize, String> {
         (None, false) => Some(bundled("refine.ckpt")?),
     };
     let models = Models::load(&coarse, refine.as_deref(), &device).map_err(|err| err.to_string())?;
-    let options = Options { paths: args.paths, regions: args.regions, ..Options::default() };
+    if !args.quiet {
+        let refine = refine.as_ref().map_or("none".to_string(), |p| p.display().to_string());
+        eprintln!("models: coarse {}, refine {refine}", coarse.display());
+    }
+    let paths = args.paths as usize;
+    if let Some(regions) = args.regions
+        && regions as usize >= paths
+    {
+        return Err(format!("--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"));
+    }
+    let options = Options { paths, regions: args.regions.map(|r| r as usize), ..Options::default() };
 
-    let bar = (many && std::io::stderr().is_terminal()).then(|| ProgressBar::new(args.inputs.len() as u64));
+    let bar = (jobs.len() > 1 && !args.quiet && std::io::stderr().is_terminal())
+        .then(|| ProgressBar::new(jobs.len() as u64));
+    let say = |line: String| match &bar {
+        Some(bar) => bar.println(line),
+        None => eprintln!("{line}"),
+    };
     let mut failed = 0;
-    for input in &args.inputs {
-        let destination = |folder: &Path, extension: &str| -> PathBuf {
-            if many {
-                let stem = input.file_stem().unwrap_or_default();
-                folder.join(Path::new(stem).with_extension(extension))
-            } else {
-                folder.to_path_buf()
+    for job in &jobs {
+        match process(job, &models, &options, args, &device, &say) {
+            Ok(line) if !args.quiet => say(line),
+            Ok(_) => {}
+            Err(message) => {
+                say(format!("error: {}: {message}", job.source.name()));
+                failed += 1;
             }
-        };
-        let result = process(input, &models, &options, args, &device, &destination);
-        if let Err(message) = result {
-            let line = format!("error: {}: {message}", input.display());
-            match &bar {
-                Some(bar) => bar.println(line),
-                None => eprintln!("{line}"),
-            }
-            failed += 1;
         }
         if let Some(bar) = &bar {
             bar.inc(1);
@@ -143,18 +345,41 @@ fn run(args: &Args) -> Result<usize, String> {
     Ok(failed)
 }
 
-/// One input: vectorize, write the SVG and whatever extra output was asked for.
+/// One input: vectorize, write the SVG and whatever extra output was asked for; the line
+/// that reports it.
 fn process(
-    input: &Path,
+    job: &Job,
     models: &Models,
     options: &Options,
     args: &Args,
     device: &burn::tensor::Device,
-    destination: &dyn Fn(&Path, &str) -> PathBuf,
-) -> Result<(), String> {
+    say: &dyn Fn(String),
+) -> Result<String, String> {
     let started = Instant::now();
-    let loaded = load(input, args.size).map_err(|err| err.message)?;
+    let loaded = match &job.source {
+        Source::File(path) => load(path, args.size).map_err(|err| err.message)?,
+        Source::Stdin => {
+            // The decoder wants a file (it reads the header, then streams large PNGs).
+            let mut bytes = Vec::new();
+            std::io::stdin().read_to_end(&mut bytes).map_err(|err| format!("reading stdin: {err}"))?;
+            let spool = std::env::temp_dir().join(format!("supersvg-stdin-{}", std::process::id()));
+            std::fs::write(&spool, &bytes).map_err(|err| format!("{}: {err}", spool.display()))?;
+            let loaded = load(&spool, args.size).map_err(|err| err.message);
+            let _ = std::fs::remove_file(&spool);
+            loaded?
+        }
+    };
     let decoded = started.elapsed().as_secs_f64();
+    let (w, h) = loaded.image.dimensions();
+    if let Some(regions) = options.regions
+        && regions > max_regions(w, h)
+    {
+        say(format!(
+            "warning: {}: --regions {regions} lowered to {} (one region per {MIN_REGION_PIXELS} pixels of the {w}×{h} working image)",
+            job.source.name(),
+            max_regions(w, h)
+        ));
+    }
     let mut result = vectorize(models, &loaded.image, options, device).map_err(|err| err.to_string())?;
     let budget = match (args.finetune_steps, args.finetune_secs) {
         (Some(steps), _) => Some(Budget::StepsPerRegion(steps)),
@@ -172,23 +397,29 @@ fn process(
     let export = Instant::now();
     let (width, height) = loaded.original;
     let svg = to_svg(&scene, width, height, None).map_err(|err| err.to_string())?;
-    let svg_path = destination(&args.output, "svg");
-    write_atomic(&svg_path, svg.as_bytes()).map_err(|err| format!("{}: {err}", svg_path.display()))?;
+    let written = match &job.svg {
+        Sink::File(path) => {
+            write_atomic(path, svg.as_bytes()).map_err(|err| format!("{}: {err}", path.display()))?;
+            path.display().to_string()
+        }
+        Sink::Stdout => {
+            let mut out = std::io::stdout().lock();
+            out.write_all(svg.as_bytes()).and_then(|()| out.flush()).map_err(|err| format!("stdout: {err}"))?;
+            "stdout".to_string()
+        }
+    };
 
-    let (w, h) = loaded.image.dimensions();
-    let needs_render = args.preview.is_some() || args.compare.is_some() || args.metrics.is_some();
+    let needs_render = job.preview.is_some() || job.compare.is_some() || job.metrics.is_some();
     let rendering = needs_render.then(|| render_exact(&scene, w, h, [1.0; 3]));
-    if let (Some(folder), Some(rendering)) = (&args.preview, &rendering) {
-        let path = destination(folder, "png");
-        write_png(&path, rendering).map_err(|err| format!("{}: {err}", path.display()))?;
+    if let (Some(path), Some(rendering)) = (&job.preview, &rendering) {
+        write_png(path, rendering).map_err(|err| format!("{}: {err}", path.display()))?;
     }
-    if let (Some(folder), Some(rendering)) = (&args.compare, &rendering) {
-        let path = destination(folder, "png");
-        write_png(&path, &side_by_side(&loaded.image, rendering))
-            .map_err(|err| format!("{}: {err}", path.display()))?;
+    if let (Some(path), Some(rendering)) = (&job.compare, &rendering) {
+        write_png(path, &side_by_side(&loaded.image, rendering)).map_err(|err| format!("{}: {err}", path.display()))?;
     }
     let export_seconds = export.elapsed().as_secs_f64();
-    if let (Some(folder), Some(rendering)) = (&args.metrics, &rendering) {
+    let mut quality = String::new();
+    if let (Some(path), Some(rendering)) = (&job.metrics, &rendering) {
         let drawn = image::DynamicImage::ImageRgb8(rendering.clone()).to_rgb32f();
         let mut seconds = serde_json::Map::new();
         seconds.insert("decode".into(), decoded.into());
@@ -197,8 +428,10 @@ fn process(
         }
         seconds.insert("export".into(), export_seconds.into());
         seconds.insert("total".into(), started.elapsed().as_secs_f64().into());
+        let value = psnr(&drawn, &loaded.image);
+        quality = format!(", PSNR {value:.2} dB");
         let report = serde_json::json!({
-            "input": input.display().to_string(),
+            "input": job.source.name(),
             "width": width,
             "height": height,
             "working_width": w,
@@ -216,15 +449,19 @@ fn process(
                 "refine_share": result.operating_point.refine_share,
             },
             "mse": mse(&drawn, &loaded.image),
-            "psnr": psnr(&drawn, &loaded.image),
+            "psnr": value,
             "ssim": ssim(&drawn, &loaded.image),
             "seconds": seconds,
         });
-        let path = destination(folder, "json");
-        let text = serde_json::to_string_pretty(&report).expect("metrics serialize");
-        write_atomic(&path, text.as_bytes()).map_err(|err| format!("{}: {err}", path.display()))?;
+        let text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
+        write_atomic(path, text.as_bytes()).map_err(|err| format!("{}: {err}", path.display()))?;
     }
-    Ok(())
+    Ok(format!(
+        "{} -> {written}: {} paths{quality}, {:.2} s",
+        job.source.name(),
+        scene.len(),
+        started.elapsed().as_secs_f64()
+    ))
 }
 
 /// The input and the rendering next to each other.
