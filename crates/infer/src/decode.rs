@@ -5,7 +5,8 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use image::imageops::FilterType;
-use image::{ImageFormat, ImageReader, Limits, Rgb, Rgb32FImage};
+use image::metadata::Orientation;
+use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits, Rgb, Rgb32FImage};
 
 /// Images with more pixels than this are never decoded whole: PNGs are streamed row by row into
 /// the working resolution, other formats are refused. 64 Mpx of 8-bit RGBA is 256 MiB.
@@ -30,9 +31,20 @@ pub struct Loaded {
     pub original: (u32, u32),
 }
 
-/// Reads `path` (png, jpeg, webp, gif — first frame —, bmp, tiff; any bit depth), scaled down
-/// so its long side is at most `long_side` (never up).
+/// Reads `path` (png, jpeg, webp, gif — first frame —, bmp, tiff; any bit depth), turned as its
+/// EXIF orientation says, scaled down so its long side is at most `long_side` (never up). A
+/// truncated file is an error (see [`load_truncated`] to draw what is there).
 pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
+    load_with(path, long_side, false)
+}
+
+/// [`load`], but a JPEG cut short is decoded as far as it goes (the decoder fills the rest)
+/// instead of refused.
+pub fn load_truncated(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
+    load_with(path, long_side, true)
+}
+
+fn load_with(path: &Path, long_side: u32, allow_truncated: bool) -> Result<Loaded, DecodeError> {
     let fail = |message: String| DecodeError { path: path.to_path_buf(), message };
     let reader = ImageReader::open(path)
         .and_then(ImageReader::with_guessed_format)
@@ -42,23 +54,40 @@ pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
     if width == 0 || height == 0 {
         return Err(fail(format!("the image is empty ({width}×{height})")));
     }
-    let (target_width, target_height) = fit(width, height, long_side);
-    let image = if u64::from(width) * u64::from(height) <= MAX_DECODED_PIXELS {
+    if format == ImageFormat::Jpeg && !allow_truncated {
+        // The JPEG decoder fills a missing end with grey and says nothing.
+        let bytes = std::fs::read(path).map_err(|err| fail(err.to_string()))?;
+        if !jpeg_is_complete(&bytes) {
+            return Err(fail(
+                "truncated: the JPEG ends before its end-of-image marker (--allow-truncated draws what is there)"
+                    .into(),
+            ));
+        }
+    }
+    let (image, original) = if u64::from(width) * u64::from(height) <= MAX_DECODED_PIXELS {
         let mut reader = ImageReader::open(path)
             .and_then(ImageReader::with_guessed_format)
             .map_err(|err| fail(err.to_string()))?;
         let mut limits = Limits::default();
         limits.max_alloc = Some(MAX_DECODED_PIXELS * 16);
         reader.limits(limits);
-        let decoded = reader.decode().map_err(|err| fail(err.to_string()))?;
+        let mut decoder = reader.into_decoder().map_err(|err| fail(err.to_string()))?;
+        // A camera's EXIF orientation (JPEG, WebP, TIFF): the picture as it is shown.
+        let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
+        let mut decoded = DynamicImage::from_decoder(decoder).map_err(|err| fail(err.to_string()))?;
+        decoded.apply_orientation(orientation);
         let rgb = superpixel::to_rgb_over_white(&decoded).map_err(|err| fail(err.to_string()))?;
-        if (target_width, target_height) == (width, height) {
+        let (width, height) = rgb.dimensions();
+        let (target_width, target_height) = fit(width, height, long_side);
+        let image = if (target_width, target_height) == (width, height) {
             rgb
         } else {
             image::imageops::resize(&rgb, target_width, target_height, FilterType::Triangle)
-        }
+        };
+        (image, (width, height))
     } else if format == ImageFormat::Png {
-        stream_png(path, (width, height), (target_width, target_height)).map_err(fail)?
+        let target = fit(width, height, long_side);
+        (stream_png(path, (width, height), target).map_err(fail)?, (width, height))
     } else {
         return Err(fail(format!(
             "the image is too large to decode ({width}×{height}); convert it to PNG, which is read \
@@ -66,7 +95,18 @@ pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
             MAX_DECODED_PIXELS >> 20
         )));
     };
-    Ok(Loaded { image, original: (width, height) })
+    Ok(Loaded { image, original })
+}
+
+/// Whether a JPEG's last scan (marker FF DA) is followed by its end-of-image marker (FF D9).
+/// Inside a scan, FF is always followed by 00 or a restart marker, so FF D9 there is the real
+/// end; data some cameras append after it is allowed.
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let last = |marker: u8| bytes.windows(2).rposition(|w| w == [0xFF, marker]);
+    match (last(0xDA), last(0xD9)) {
+        (Some(scan), Some(end)) => end > scan,
+        _ => false,
+    }
 }
 
 /// The size with the same aspect ratio whose long side is at most `long_side`.
@@ -132,6 +172,59 @@ fn stream_png(path: &Path, (width, height): (u32, u32), (tw, th): (u32, u32)) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exif_orientation_turns_the_picture() {
+        use image::codecs::jpeg::JpegEncoder;
+        use image::{ImageEncoder, RgbImage};
+        // 40 × 20, red on the left half. EXIF (little-endian TIFF) with one entry:
+        // Orientation (0x0112) = 6, "rotate 90° clockwise to display".
+        let picture = RgbImage::from_fn(40, 20, |x, _| if x < 20 { Rgb([250, 0, 0]) } else { Rgb([0, 0, 250]) });
+        let exif: Vec<u8> = [
+            &b"II*\0"[..],
+            &8u32.to_le_bytes(),
+            &1u16.to_le_bytes(),
+            &0x0112u16.to_le_bytes(),
+            &3u16.to_le_bytes(),
+            &1u32.to_le_bytes(),
+            &[6, 0, 0, 0],
+            &0u32.to_le_bytes(),
+        ]
+        .concat();
+        let mut bytes = Vec::new();
+        let mut encoder = JpegEncoder::new_with_quality(&mut bytes, 95);
+        encoder.set_exif_metadata(exif).unwrap();
+        encoder.write_image(&picture, 40, 20, image::ExtendedColorType::Rgb8).unwrap();
+        let path = std::env::temp_dir().join(format!("supersvg-exif-{}.jpg", std::process::id()));
+        std::fs::write(&path, &bytes).unwrap();
+        let loaded = load(&path, 512).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(loaded.original, (20, 40), "turned upright");
+        assert_eq!(loaded.image.dimensions(), (20, 40));
+        // Rotated clockwise, the left (red) half is now on top.
+        assert!(loaded.image.get_pixel(10, 5)[0] > 0.8 && loaded.image.get_pixel(10, 35)[2] > 0.8);
+    }
+
+    #[test]
+    fn truncated_jpegs_are_refused_unless_allowed() {
+        let picture = image::RgbImage::from_fn(64, 48, |x, y| Rgb([(x * 4) as u8, (y * 5) as u8, 90]));
+        let mut bytes = Vec::new();
+        picture.write_to(&mut std::io::Cursor::new(&mut bytes), ImageFormat::Jpeg).unwrap();
+        let dir = std::env::temp_dir().join(format!("supersvg-truncated-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (whole, half, trailer) = (dir.join("whole.jpg"), dir.join("half.jpg"), dir.join("trailer.jpg"));
+        std::fs::write(&whole, &bytes).unwrap();
+        // Cut inside the scan data: the headers are whole, the picture is not.
+        let scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]).unwrap();
+        std::fs::write(&half, &bytes[..(scan + bytes.len()) / 2]).unwrap();
+        std::fs::write(&trailer, [&bytes[..], b"SEFH appended by a camera"].concat()).unwrap();
+        assert!(load(&whole, 512).is_ok());
+        assert!(load(&trailer, 512).is_ok());
+        let Err(err) = load(&half, 512) else { panic!("a truncated JPEG was accepted") };
+        assert!(err.message.contains("truncated") && err.path == half, "{err:?}");
+        assert_eq!(load_truncated(&half, 512).unwrap().image.dimensions(), (64, 48));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn fitting_keeps_the_aspect_ratio_and_never_upscales() {

@@ -11,7 +11,7 @@ use std::time::Instant;
 use clap::Parser;
 use image::{Rgb32FImage, RgbImage};
 use indicatif::ProgressBar;
-use infer::decode::load;
+use infer::decode::{load, load_truncated};
 use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
@@ -73,6 +73,9 @@ struct Args {
     /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
     #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
+    /// Draw what a truncated JPEG holds instead of refusing it.
+    #[arg(long)]
+    allow_truncated: bool,
     /// No line per file and no progress bar; errors and warnings only.
     #[arg(short, long)]
     quiet: bool,
@@ -356,6 +359,7 @@ fn process(
     say: &dyn Fn(String),
 ) -> Result<String, String> {
     let started = Instant::now();
+    let load = if args.allow_truncated { load_truncated } else { load };
     let loaded = match &job.source {
         Source::File(path) => load(path, args.size).map_err(|err| err.message)?,
         Source::Stdin => {
