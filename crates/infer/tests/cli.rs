@@ -349,3 +349,18 @@ fn devices_stdin_and_stdout_work_as_files() {
     let stderr = text(&result.stderr);
     assert!(stderr.contains("models: coarse") && stderr.contains("one.svg: ") && stderr.contains(" paths"), "{stderr}");
 }
+
+#[test]
+fn regions_are_groups_and_decimals_are_chosen() {
+    let fixture = Fixture::new("layers");
+    let photo = fixture.path("photo.png").to_str().unwrap().to_string();
+    let out = fixture.path("layers.svg");
+    let args = vec![photo, "-o".into(), out.to_str().unwrap().into(), "--paths".into(), "20".into(), "--decimals".into(), "0".into()];
+    let result = infer_within(&fixture, &args, 60);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let svg = std::fs::read_to_string(&out).unwrap();
+    assert!(svg.matches("<g class=\"region-").count() >= 10, "{svg}");
+    let d: Vec<&str> = svg.split("d=\"").skip(1).map(|rest| rest.split('"').next().unwrap()).collect();
+    assert!(d.iter().all(|d| !d.contains('.')), "integer coordinates with --decimals 0: {d:?}");
+    parse_svg(&out);
+}

@@ -23,6 +23,24 @@ pub enum SvgError {
     },
 }
 
+/// How [`to_svg_with`] writes a document.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SvgOptions {
+    /// A rectangle of this colour painted first.
+    pub background: Option<[f32; 3]>,
+    /// Decimals of coordinates and opacity (0 to 6): 2 keeps 1/100 pixel, smaller files take fewer.
+    pub decimals: usize,
+}
+
+impl Default for SvgOptions {
+    fn default() -> Self {
+        Self { background: None, decimals: 2 }
+    }
+}
+
+/// The most decimals [`SvgOptions::decimals`] takes: f32 coordinates hold about 7 digits.
+pub const MAX_DECIMALS: usize = 6;
+
 /// Writes `paths` (unit-square coordinates) as an SVG document of `width × height` pixels.
 ///
 /// The viewBox is in pixels; a background rectangle is painted first when `background` is given.
@@ -35,6 +53,25 @@ pub fn to_svg(
     height: u32,
     background: Option<[f32; 3]>,
 ) -> Result<String, SvgError> {
+    let layers = vec![None; paths.len()];
+    to_svg_with(paths, &layers, width, height, &SvgOptions { background, ..SvgOptions::default() })
+}
+
+/// [`to_svg`] with options, and each path's layer: consecutive paths of one layer `Some(n)` go
+/// in one `<g class="region-n">` (an editor selects a superpixel's paths together; painter's
+/// order is kept, so a layer may appear more than once), `None` paths stand alone.
+///
+/// # Panics
+/// If `layers` is shorter than `paths` or `options.decimals` exceeds [`MAX_DECIMALS`].
+pub fn to_svg_with(
+    paths: &[Path],
+    layers: &[Option<u32>],
+    width: u32,
+    height: u32,
+    options: &SvgOptions,
+) -> Result<String, SvgError> {
+    assert!(layers.len() >= paths.len(), "one layer per path");
+    assert!(options.decimals <= MAX_DECIMALS, "at most {MAX_DECIMALS} decimals");
     if width == 0 || height == 0 {
         return Err(SvgError::EmptyCanvas { width, height });
     }
@@ -42,10 +79,12 @@ pub fn to_svg(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" \
          viewBox=\"0 0 {width} {height}\">\n"
     );
-    if let Some(color) = background {
+    if let Some(color) = options.background {
         let _ = writeln!(svg, "<rect width=\"{width}\" height=\"{height}\" fill=\"{}\"/>", hex(color));
     }
     let (sx, sy) = (width as f32, height as f32);
+    let number = |value: f32| number(value, options.decimals);
+    let mut open: Option<u32> = None;
     for (index, path) in paths.iter().enumerate() {
         let finite = path.points.iter().flatten().chain(&path.color).all(|v| v.is_finite());
         if !finite || !path.alpha.is_finite() {
@@ -53,6 +92,15 @@ pub fn to_svg(
         }
         if path.alpha <= 0.0 {
             continue;
+        }
+        if layers[index] != open {
+            if open.is_some() {
+                svg.push_str("</g>\n");
+            }
+            if let Some(layer) = layers[index] {
+                let _ = writeln!(svg, "<g class=\"region-{layer}\">");
+            }
+            open = layers[index];
         }
         let point = |[x, y]: [f32; 2]| format!("{} {}", number(x * sx), number(y * sy));
         let mut d = format!("M{}", point(path.points[0]));
@@ -67,6 +115,9 @@ pub fn to_svg(
         }
         svg.push_str(" fill-rule=\"nonzero\"/>\n");
     }
+    if open.is_some() {
+        svg.push_str("</g>\n");
+    }
     svg.push_str("</svg>\n");
     Ok(svg)
 }
@@ -77,10 +128,10 @@ fn hex(color: [f32; 3]) -> String {
     format!("#{r:02x}{g:02x}{b:02x}")
 }
 
-/// A number with at most two decimals and no trailing zeros (`12`, `3.5`, `-0.25`).
-fn number(value: f32) -> String {
-    let text = format!("{value:.2}");
-    let text = text.trim_end_matches('0').trim_end_matches('.');
+/// A number with at most `decimals` decimals and no trailing zeros (`12`, `3.5`, `-0.25`).
+fn number(value: f32, decimals: usize) -> String {
+    let text = format!("{value:.decimals$}");
+    let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
     if text == "-0" { "0".to_string() } else { text.to_string() }
 }
 
@@ -114,9 +165,24 @@ mod tests {
 
     #[test]
     fn numbers_are_short() {
-        assert_eq!(number(12.0), "12");
-        assert_eq!(number(3.5), "3.5");
-        assert_eq!(number(-0.001), "0");
-        assert_eq!(number(0.126), "0.13");
+        assert_eq!(number(12.0, 2), "12");
+        assert_eq!(number(3.5, 2), "3.5");
+        assert_eq!(number(-0.001, 2), "0");
+        assert_eq!(number(0.126, 2), "0.13");
+        assert_eq!(number(120.0, 0), "120");
+        assert_eq!(number(12.34567, 4), "12.3457");
+    }
+
+    #[test]
+    fn consecutive_paths_of_a_region_share_a_group() {
+        let paths = [square(1.0), square(1.0), square(1.0), square(1.0), square(1.0)];
+        let layers = [None, Some(3), Some(3), Some(5), Some(3)];
+        let svg = to_svg_with(&paths, &layers, 100, 100, &SvgOptions { decimals: 0, ..SvgOptions::default() }).unwrap();
+        assert_eq!(svg.matches("<g class=\"region-3\">").count(), 2, "{svg}");
+        assert_eq!(svg.matches("<g class=\"region-5\">").count(), 1);
+        assert_eq!(svg.matches("</g>").count(), 3);
+        assert!(svg.contains("M25 25C"), "{svg}");
+        let tree = resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default());
+        assert!(tree.is_ok(), "well-formed");
     }
 }

@@ -17,7 +17,7 @@ use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
 use infer::pipeline::{MAX_PATHS, MIN_REGION_PIXELS, Options, max_regions, vectorize};
 use infer::write::{write_atomic, write_png};
-use raster::{Backend, render_exact, to_svg};
+use raster::{Backend, MAX_DECIMALS, SvgOptions, render_exact, to_svg_with};
 
 /// Vectorize images into SVG with SuperSVG.
 ///
@@ -73,6 +73,9 @@ struct Args {
     /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
     #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
+    /// Decimals of the SVG's coordinates (0 to 6; 2 keeps 1/100 pixel, fewer make smaller files).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=MAX_DECIMALS as i64))]
+    decimals: u8,
     /// Draw what a truncated JPEG holds instead of refusing it.
     #[arg(long)]
     allow_truncated: bool,
@@ -400,7 +403,10 @@ fn process(
 
     let export = Instant::now();
     let (width, height) = loaded.original;
-    let svg = to_svg(&scene, width, height, None).map_err(|err| err.to_string())?;
+    // One group per superpixel region, so editors select a region's paths together.
+    let layers: Vec<Option<u32>> = result.scene.paths().iter().map(|placed| placed.region).collect();
+    let svg_options = SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() };
+    let svg = to_svg_with(&scene, &layers, width, height, &svg_options).map_err(|err| err.to_string())?;
     let written = match &job.svg {
         Sink::File(path) => {
             write_atomic(path, svg.as_bytes()).map_err(|err| format!("{}: {err}", path.display()))?;
