@@ -31,20 +31,34 @@ pub struct Loaded {
     pub original: (u32, u32),
 }
 
+/// How [`load_with`] reads an image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadOptions {
+    /// The long side is scaled down to at most this many pixels (never up).
+    pub long_side: u32,
+    /// Decode a JPEG cut short as far as it goes (the decoder fills the rest) instead of
+    /// refusing it.
+    pub allow_truncated: bool,
+    /// Transparent pixels are composited over this colour (RGB in [0, 1]).
+    pub background: [f32; 3],
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        Self { long_side: 512, allow_truncated: false, background: [1.0; 3] }
+    }
+}
+
 /// Reads `path` (png, jpeg, webp, gif — first frame —, bmp, tiff; any bit depth), turned as its
-/// EXIF orientation says, scaled down so its long side is at most `long_side` (never up). A
-/// truncated file is an error (see [`load_truncated`] to draw what is there).
+/// EXIF orientation says, over white, scaled down so its long side is at most `long_side`
+/// (never up). A truncated file is an error.
 pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
-    load_with(path, long_side, false)
+    load_with(path, &LoadOptions { long_side, ..LoadOptions::default() })
 }
 
-/// [`load`], but a JPEG cut short is decoded as far as it goes (the decoder fills the rest)
-/// instead of refused.
-pub fn load_truncated(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
-    load_with(path, long_side, true)
-}
-
-fn load_with(path: &Path, long_side: u32, allow_truncated: bool) -> Result<Loaded, DecodeError> {
+/// [`load`] with every option.
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeError> {
+    let (long_side, allow_truncated, background) = (options.long_side, options.allow_truncated, options.background);
     let fail = |message: String| DecodeError { path: path.to_path_buf(), message };
     let reader = ImageReader::open(path)
         .and_then(ImageReader::with_guessed_format)
@@ -76,7 +90,7 @@ fn load_with(path: &Path, long_side: u32, allow_truncated: bool) -> Result<Loade
         let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
         let mut decoded = DynamicImage::from_decoder(decoder).map_err(|err| fail(err.to_string()))?;
         decoded.apply_orientation(orientation);
-        let rgb = superpixel::to_rgb_over_white(&decoded).map_err(|err| fail(err.to_string()))?;
+        let rgb = superpixel::to_rgb_over(&decoded, background).map_err(|err| fail(err.to_string()))?;
         let (width, height) = rgb.dimensions();
         let (target_width, target_height) = fit(width, height, long_side);
         let image = if (target_width, target_height) == (width, height) {
@@ -87,7 +101,7 @@ fn load_with(path: &Path, long_side: u32, allow_truncated: bool) -> Result<Loade
         (image, (width, height))
     } else if format == ImageFormat::Png {
         let target = fit(width, height, long_side);
-        (stream_png(path, (width, height), target).map_err(fail)?, (width, height))
+        (stream_png(path, (width, height), target, background).map_err(fail)?, (width, height))
     } else {
         return Err(fail(format!(
             "the image is too large to decode ({width}×{height}); convert it to PNG, which is read \
@@ -121,7 +135,12 @@ fn fit(width: u32, height: u32, long_side: u32) -> (u32, u32) {
 
 /// Decodes a non-interlaced PNG row by row, averaging source pixels into the cells of a
 /// `target` grid, so memory holds one source row and the small output.
-fn stream_png(path: &Path, (width, height): (u32, u32), (tw, th): (u32, u32)) -> Result<Rgb32FImage, String> {
+fn stream_png(
+    path: &Path,
+    (width, height): (u32, u32),
+    (tw, th): (u32, u32),
+    background: [f32; 3],
+) -> Result<Rgb32FImage, String> {
     let file = File::open(path).map_err(|err| err.to_string())?;
     let mut decoder = png::Decoder::new(BufReader::new(file));
     decoder.set_transformations(png::Transformations::normalize_to_color8());
@@ -153,7 +172,7 @@ fn stream_png(path: &Path, (width, height): (u32, u32), (tw, th): (u32, u32)) ->
             let a = alpha as f64 / 255.0;
             let cell = &mut sums[cell_row * tw as usize + column_cell[x]];
             for c in 0..3 {
-                cell[c] += rgb[c] as f64 / 255.0 * a + (1.0 - a);
+                cell[c] += rgb[c] as f64 / 255.0 * a + background[c] as f64 * (1.0 - a);
             }
             cell[3] += 1.0;
         }
@@ -222,7 +241,8 @@ mod tests {
         assert!(load(&trailer, 512).is_ok());
         let Err(err) = load(&half, 512) else { panic!("a truncated JPEG was accepted") };
         assert!(err.message.contains("truncated") && err.path == half, "{err:?}");
-        assert_eq!(load_truncated(&half, 512).unwrap().image.dimensions(), (64, 48));
+        let allowed = LoadOptions { long_side: 512, allow_truncated: true, ..LoadOptions::default() };
+        assert_eq!(load_with(&half, &allowed).unwrap().image.dimensions(), (64, 48));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

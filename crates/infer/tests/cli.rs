@@ -364,3 +364,36 @@ fn regions_are_groups_and_decimals_are_chosen() {
     assert!(d.iter().all(|d| !d.contains('.')), "integer coordinates with --decimals 0: {d:?}");
     parse_svg(&out);
 }
+
+#[test]
+fn transparent_pixels_take_the_background_colour() {
+    let fixture = Fixture::new("background");
+    RgbaImage::from_fn(40, 30, |x, _| Rgba([0, 0, 255, if x < 20 { 0 } else { 255 }]))
+        .save(fixture.path("alpha.png"))
+        .unwrap();
+    for (background, left) in [("#000000", [0u8, 0, 0]), ("#ffffff", [255, 255, 255])] {
+        let preview = fixture.path("preview.png");
+        let args: Vec<String> = [
+            fixture.path("alpha.png").to_str().unwrap(),
+            "-o",
+            fixture.path("alpha.svg").to_str().unwrap(),
+            "--preview",
+            preview.to_str().unwrap(),
+            "--paths",
+            "10",
+            "--background",
+            background,
+        ]
+        .map(String::from)
+        .to_vec();
+        let result = infer_within(&fixture, &args, 60);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        let drawn = image::open(&preview).unwrap().to_rgb8();
+        let pixel = drawn.get_pixel(5, 15).0;
+        assert!(pixel.iter().zip(left).all(|(a, b)| a.abs_diff(b) < 30), "{background}: {pixel:?}");
+        assert!(drawn.get_pixel(35, 15).0[2] > 200, "the opaque half stays blue");
+    }
+    let bad = infer_within(&fixture, &[fixture.path("alpha.png").to_str().unwrap().into(), "-o".into(), fixture.path("x.svg").to_str().unwrap().into(), "--background".into(), "red".into()], 60);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(text(&bad.stderr).contains("#rrggbb"));
+}

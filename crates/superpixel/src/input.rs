@@ -18,6 +18,11 @@ pub enum InputError {
 /// RGB in [0, 1] of any decoded image: grey is expanded, 16-bit and float inputs are rescaled,
 /// and transparent pixels are composited over white (what a viewer shows on a white page).
 pub fn to_rgb_over_white(image: &DynamicImage) -> Result<Rgb32FImage, InputError> {
+    to_rgb_over(image, [1.0; 3])
+}
+
+/// [`to_rgb_over_white`] with transparent pixels composited over `background` (RGB in [0, 1]).
+pub fn to_rgb_over(image: &DynamicImage, background: [f32; 3]) -> Result<Rgb32FImage, InputError> {
     let (width, height) = (image.width(), image.height());
     if width == 0 || height == 0 {
         return Err(InputError::Empty { width, height });
@@ -27,7 +32,7 @@ pub fn to_rgb_over_white(image: &DynamicImage) -> Result<Rgb32FImage, InputError
         .pixels()
         .flat_map(|p| {
             let [r, g, b, a] = p.0.map(|v| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 });
-            [r, g, b].map(|c| c * a + (1.0 - a))
+            [0, 1, 2].map(|c| [r, g, b][c] * a + background[c] * (1.0 - a))
         })
         .collect();
     Ok(Rgb32FImage::from_raw(width, height, pixels).expect("buffer matches the image"))
@@ -53,6 +58,8 @@ mod tests {
 
     #[test]
     fn empty_image_is_an_error() {
+        let black = to_rgb_over(&DynamicImage::ImageRgba8(ImageBuffer::from_pixel(1, 1, Rgba([255, 0, 0, 0]))), [0.0, 0.5, 0.0]).unwrap();
+        assert_eq!(black.get_pixel(0, 0).0, [0.0, 0.5, 0.0], "fully transparent shows the background");
         let empty = DynamicImage::ImageLuma8(GrayImage::new(0, 3));
         assert_eq!(to_rgb_over_white(&empty), Err(InputError::Empty { width: 0, height: 3 }));
     }

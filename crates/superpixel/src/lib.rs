@@ -13,6 +13,6 @@ mod outline;
 mod slic;
 
 pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
-pub use input::{InputError, to_rgb_over_white};
+pub use input::{InputError, to_rgb_over, to_rgb_over_white};
 pub use merge::{SegmentOptions, segment};
 pub use slic::{BoundingBox, Region, Segmentation, SlicError, SlicOptions, slic};

@@ -11,7 +11,7 @@ use std::time::Instant;
 use clap::Parser;
 use image::{Rgb32FImage, RgbImage};
 use indicatif::ProgressBar;
-use infer::decode::{load, load_truncated};
+use infer::decode::{LoadOptions, load_with};
 use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
@@ -76,6 +76,9 @@ struct Args {
     /// Decimals of the SVG's coordinates (0 to 6; 2 keeps 1/100 pixel, fewer make smaller files).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=MAX_DECIMALS as i64))]
     decimals: u8,
+    /// The colour transparent pixels are composited over (`#rrggbb`); the SVG is opaque.
+    #[arg(long, default_value = "#ffffff", value_parser = colour)]
+    background: Colour,
     /// Draw what a truncated JPEG holds instead of refusing it.
     #[arg(long)]
     allow_truncated: bool,
@@ -86,6 +89,20 @@ struct Args {
 
 /// The largest `--size`: a working image of 8192² is already 64 Mpx of f32 canvases.
 const MAX_SIZE: u32 = 8192;
+
+/// An RGB colour in [0, 1].
+#[derive(Clone, Copy, Debug)]
+struct Colour([f32; 3]);
+
+/// `#rrggbb` (or `rrggbb`) as a colour.
+fn colour(text: &str) -> Result<Colour, String> {
+    let hex = text.strip_prefix('#').unwrap_or(text);
+    let channel = |i: usize| hex.get(i..i + 2).and_then(|h| u8::from_str_radix(h, 16).ok());
+    match (hex.len(), channel(0), channel(2), channel(4)) {
+        (6, Some(r), Some(g), Some(b)) => Ok(Colour([r, g, b].map(|c| c as f32 / 255.0))),
+        _ => Err(format!("{text:?} is not a colour: write it #rrggbb")),
+    }
+}
 
 /// A finite number of seconds within [0, 3600].
 fn seconds(text: &str) -> Result<f64, String> {
@@ -362,16 +379,18 @@ fn process(
     say: &dyn Fn(String),
 ) -> Result<String, String> {
     let started = Instant::now();
-    let load = if args.allow_truncated { load_truncated } else { load };
+    let load_options =
+        LoadOptions { long_side: args.size, allow_truncated: args.allow_truncated, background: args.background.0 };
+    let load = |path: &Path| load_with(path, &load_options);
     let loaded = match &job.source {
-        Source::File(path) => load(path, args.size).map_err(|err| err.message)?,
+        Source::File(path) => load(path).map_err(|err| err.message)?,
         Source::Stdin => {
             // The decoder wants a file (it reads the header, then streams large PNGs).
             let mut bytes = Vec::new();
             std::io::stdin().read_to_end(&mut bytes).map_err(|err| format!("reading stdin: {err}"))?;
             let spool = std::env::temp_dir().join(format!("supersvg-stdin-{}", std::process::id()));
             std::fs::write(&spool, &bytes).map_err(|err| format!("{}: {err}", spool.display()))?;
-            let loaded = load(&spool, args.size).map_err(|err| err.message);
+            let loaded = load(&spool).map_err(|err| err.message);
             let _ = std::fs::remove_file(&spool);
             loaded?
         }
