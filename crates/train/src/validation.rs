@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 
 use image::Rgb32FImage;
-use model::ModelConfig;
+use model::{ModelConfig, OperatingPoint};
 use raster::{Path, coverage_exact, paint_exact};
 use serde::{Deserialize, Serialize};
 use superpixel::{RegionCrop, segment};
@@ -30,7 +30,9 @@ pub struct ValidationConfig {
     /// Crops in the set, taken evenly from the images.
     pub crops: usize,
     /// Region counts of the images' segmentations, spread geometrically over the images from
-    /// the first to the second (made like the training regions otherwise).
+    /// the first to the second. Regions are made as inference's default operating point makes
+    /// them (SLIC merged by colour), whatever the training data uses, so runs with different
+    /// `[data]` are scored on the same crops.
     pub segments: [usize; 2],
     /// Steps between scores (and previews of the validation crops).
     pub every: usize,
@@ -86,7 +88,8 @@ pub struct Scores {
 }
 
 impl Validation {
-    /// Cuts the set from `config.images`, with regions made as `data` makes them and crops cut
+    /// Cuts the set from `config.images`, with regions made as inference makes them (`data`
+    /// gives the SLIC compactness) and crops cut
     /// by `model`'s input contract; `dilation` is the boundary loss's. Deterministic.
     pub fn build(
         config: &ValidationConfig,
@@ -104,7 +107,8 @@ impl Validation {
             let t = if images.len() > 1 { index as f64 / (images.len() - 1) as f64 } else { 0.0 };
             let count = (low as f64 * (high as f64 / low as f64).powf(t)).round() as usize;
             let count = count.clamp(1, (scene.width() * scene.height()) as usize);
-            let segmentation = segment(&scene, count, &data.segment_options())
+            let options = OperatingPoint::default().segment_options(data.compactness);
+            let segmentation = segment(&scene, count, &options)
                 .map_err(|err| DataError::new(format!("validation: {}: {err}", folder.display())))?;
             let usable: Vec<u32> = (0..segmentation.regions.len() as u32)
                 .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
