@@ -24,7 +24,7 @@ use image::{Rgb32FImage, RgbImage};
 use infer::decode::load;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::{mse, psnr, ssim};
-use infer::pipeline::{Options, vectorize};
+use infer::pipeline::{MAX_PATHS, Options, vectorize};
 use infer::scene::{Origin, Scene};
 use infer::write::{write_atomic, write_png};
 use raster::{Backend, to_svg};
@@ -41,11 +41,11 @@ const SPILL_DILATION: u32 = 2;
 struct Args {
     /// Folder of images.
     dir: PathBuf,
-    /// Path budgets, comma separated (each at least 2).
-    #[arg(long, value_delimiter = ',', default_value = "500,2000")]
+    /// Path budgets, comma separated (each 2 to 20 000).
+    #[arg(long, value_delimiter = ',', default_value = "500,2000", allow_hyphen_values = true)]
     paths: Vec<usize>,
     /// Also run SuperSVG-F, fine-tuning for this many seconds per image.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
     /// The markdown report to write; the contact sheet goes next to it as PNG.
     #[arg(long)]
@@ -60,7 +60,7 @@ struct Args {
     #[arg(long, default_value = "flex")]
     backend: Backend,
     /// Long side of the working resolution.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_hyphen_values = true)]
     size: u32,
     /// Peers: vtracer and potrace (when installed), slic (pixel-exact superpixels in their mean
     /// colour), fallback (SuperSVG's fallback drawing alone); comma separated, empty for none.
@@ -97,8 +97,11 @@ fn run(args: Args) -> Result<(), String> {
     if let Some(bad) = args.peers.iter().find(|p| !p.is_empty() && !PEERS.contains(&p.as_str())) {
         return Err(format!("--peers: unknown peer `{bad}` (known: {})", PEERS.join(", ")));
     }
-    if let Some(bad) = args.paths.iter().find(|&&p| p < 2) {
-        return Err(format!("--paths: {bad} is too small (at least 2: the background and one region)"));
+    if let Some(bad) = args.paths.iter().find(|&&p| !(2..=MAX_PATHS).contains(&p)) {
+        return Err(format!("--paths: {bad} is out of range (2, the background and one region, to {MAX_PATHS})"));
+    }
+    if !(16..=8192).contains(&args.size) {
+        return Err(format!("--size: {} is out of range (16 to 8192 pixels)", args.size));
     }
     if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         return Err(format!("--finetune-secs: {seconds} is not a number of seconds"));

@@ -1,0 +1,54 @@
+//! `eval` refuses flags it cannot honour before any work, with the flag's name, and never hangs.
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const EVAL: &str = env!("CARGO_BIN_EXE_eval");
+
+#[test]
+fn wild_flag_values_are_refused_by_name_and_never_hang() {
+    let dir = std::env::temp_dir().join(format!("supersvg-eval-flags-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    image::RgbImage::from_pixel(20, 10, image::Rgb([10, 200, 30])).save(dir.join("a.png")).unwrap();
+    let folder = dir.to_str().unwrap();
+    let out = dir.join("report.md");
+    // (flag and value, what stderr must name)
+    let cases: [(&[&str], &str); 12] = [
+        (&["--paths", "0"], "--paths"),
+        (&["--paths", "1"], "--paths"),
+        (&["--paths", "1000000"], "--paths"),
+        (&["--paths", "-5"], "--paths"),
+        (&["--paths", "NaN"], "--paths"),
+        (&["--finetune-secs", "NaN"], "--finetune-secs"),
+        (&["--finetune-secs", "inf"], "--finetune-secs"),
+        (&["--finetune-secs=-1"], "--finetune-secs"),
+        (&["--size", "0"], "--size"),
+        (&["--size", "99999999"], "--size"),
+        (&["--peers", "foo"], "foo"),
+        (&["--limit", "x"], "--limit"),
+    ];
+    for (flags, name) in cases {
+        let mut child = Command::new(EVAL)
+            .arg(folder)
+            .args(["--out", out.to_str().unwrap()])
+            .args(flags)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let started = Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if started.elapsed() > Duration::from_secs(30) {
+                child.kill().unwrap();
+                panic!("{flags:?} still running after 30 s");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let result = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(matches!(result.status.code(), Some(1 | 2)), "{flags:?}: {:?} {stderr}", result.status.code());
+        assert!(stderr.contains(name), "{flags:?}: {stderr:?} does not name {name}");
+        assert!(!out.exists(), "{flags:?} wrote a report");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
