@@ -11,10 +11,11 @@ use burn::module::Param;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
-use raster::{PARAMS, Path, PathBatch, SoftRasterOptions, paint_soft, render_exact};
+use raster::{PARAMS, Path, PathBatch, SoftRasterOptions, paint_exact, paint_soft, render_exact};
 use superpixel::{BoundingBox, CropTransform};
+use tiny_skia::Pixmap;
 
-use crate::scene::Scene;
+use crate::scene::{Scene, pixel_error};
 
 /// How long to fine-tune.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,8 +54,9 @@ impl Default for FinetuneOptions {
 }
 
 /// Fine-tunes the paths of `scene` (all but the background) against its image on `device`
-/// (with autodiff), then renders the scene again; if the exact rendering came out worse than
-/// before, the scene keeps its old paths. Returns the number of optimizer steps taken.
+/// (with autodiff). A region's tuned paths are kept only where the exact drawing of its box
+/// gets closer to the image; if the whole exact rendering still came out worse than before,
+/// the scene keeps its old paths. Returns the number of optimizer steps taken.
 pub fn finetune(scene: &mut Scene, options: &FinetuneOptions, device: &Device) -> usize {
     let started = Instant::now();
     let before: f64 = scene.region_errors().iter().sum();
@@ -87,8 +89,14 @@ pub fn finetune(scene: &mut Scene, options: &FinetuneOptions, device: &Device) -
                 paths.iter().enumerate().filter(|(i, _)| !members.contains(i)).map(|(_, p)| *p).collect();
             let local: Vec<Path> = members.iter().map(|&i| to_box(paths[i], &transform, width, height)).collect();
             let tuned = optimize(&local, &others, &image, bbox, turn, options, device);
+            // Kept only if the exact drawing of the box, every path in painter's order, is
+            // closer to the image: the soft render over a fixed canvas only approximates it.
+            let mut candidate = paths.clone();
             for (&i, path) in members.iter().zip(tuned) {
-                paths[i] = from_box(path, &transform, width, height);
+                candidate[i] = from_box(path, &transform, width, height);
+            }
+            if box_error(&candidate, &image, bbox) < box_error(&paths, &image, bbox) {
+                paths = candidate;
             }
             taken[region as usize] += turn;
             steps += turn;
@@ -103,6 +111,24 @@ pub fn finetune(scene: &mut Scene, options: &FinetuneOptions, device: &Device) -
         scene.set_paths(&original);
     }
     steps
+}
+
+/// Squared error inside `bbox` between `paths`, painted exactly in order (over white, as
+/// [`Scene`] scores), and `image`.
+fn box_error(paths: &[Path], image: &Rgb32FImage, bbox: BoundingBox) -> f64 {
+    let (width, height) = image.dimensions();
+    let Some(mut pixmap) = Pixmap::new(bbox.width(), bbox.height()) else { return 0.0 };
+    for path in paths {
+        paint_exact(&mut pixmap, path, (width, height), (bbox.x0, bbox.y0));
+    }
+    let mut sum = 0.0;
+    for y in 0..bbox.height() {
+        for x in 0..bbox.width() {
+            let index = (y * bbox.width() + x) as usize;
+            sum += pixel_error(pixmap.data(), index, image.get_pixel(bbox.x0 + x, bbox.y0 + y));
+        }
+    }
+    sum
 }
 
 /// `steps` Adam steps on `local` (box unit square) painted over the exact rendering of

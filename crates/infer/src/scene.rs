@@ -280,7 +280,7 @@ fn over_white(channel: u8, alpha: u8) -> f32 {
 }
 
 /// Squared RGB difference at pixel `index` of premultiplied RGBA `data` (over white).
-fn pixel_error(data: &[u8], index: usize, target: &Rgb<f32>) -> f64 {
+pub(crate) fn pixel_error(data: &[u8], index: usize, target: &Rgb<f32>) -> f64 {
     let i = 4 * index;
     let alpha = data[i + 3];
     (0..3).map(|c| (over_white(data[i + c], alpha) - target.0[c]).powi(2) as f64).sum()
