@@ -18,7 +18,8 @@ fn photo() -> Rgb32FImage {
 #[test]
 fn training_and_inference_build_identical_region_inputs() {
     let image = photo();
-    let segmentation = segment(&image, 12, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
+    let segmentation =
+        segment(&image, 12, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
     // A contract that differs from the defaults, so a path that ignored it would show.
     let config = ModelConfig {
         input_size: 16,

@@ -7,8 +7,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use image::{Rgb, Rgb32FImage};
-use raster::Path as VectorPath;
 use model::OperatingPoint;
+use raster::Path as VectorPath;
 use superpixel::{SlicOptions, slic};
 
 /// An SVG made by some method, and the seconds it took.
@@ -162,8 +162,9 @@ pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorP
     let started = Instant::now();
     let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
     let point = OperatingPoint::default();
-    let segmentation = infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)
-        .map_err(|err| err.to_string())?;
+    let segmentation =
+        infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)
+            .map_err(|err| err.to_string())?;
     let drawing = infer::fallback::mosaic(image, &segmentation);
     Ok((drawing, started.elapsed().as_secs_f64()))
 }

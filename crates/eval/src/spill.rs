@@ -11,7 +11,9 @@ pub fn spill(paths: &[Placed], segmentation: &Segmentation, dilation: u32) -> f6
     let (width, height) = (segmentation.width, segmentation.height);
     let (mut outside, mut total) = (0.0f64, 0.0f64);
     for placed in paths {
-        let (Some(region), Some(mask)) = (placed.region, coverage_exact(&placed.path, width, height)) else { continue };
+        let (Some(region), Some(mask)) = (placed.region, coverage_exact(&placed.path, width, height)) else {
+            continue;
+        };
         for (index, &value) in mask.data().iter().enumerate() {
             if value == 0 {
                 continue;
@@ -45,11 +47,17 @@ mod tests {
 
     #[test]
     fn paths_inside_their_region_do_not_spill() {
-        let image = Rgb32FImage::from_fn(40, 20, |x, _| if x < 20 { Rgb([1.0, 0.0, 0.0]) } else { Rgb([0.0, 0.0, 1.0]) });
+        let image =
+            Rgb32FImage::from_fn(
+                40,
+                20,
+                |x, _| if x < 20 { Rgb([1.0, 0.0, 0.0]) } else { Rgb([0.0, 0.0, 1.0]) },
+            );
         let segmentation = slic(&image, &SlicOptions { n_segments: 2, ..Default::default() }).unwrap();
         let left = segmentation.label(0, 0);
         let square = |x0: f32, x1: f32| {
-            let path = Path::quadrilateral([[x0, 0.0], [x1, 0.0], [x1, 1.0], [x0, 1.0]], [1.0, 0.0, 0.0], 1.0);
+            let path =
+                Path::quadrilateral([[x0, 0.0], [x1, 0.0], [x1, 1.0], [x0, 1.0]], [1.0, 0.0, 0.0], 1.0);
             Placed { path, region: Some(left), origin: Origin::Coarse }
         };
         assert_eq!(spill(&[square(0.0, 0.5)], &segmentation, 0), 0.0);

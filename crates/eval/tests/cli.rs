@@ -46,7 +46,11 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
         }
         let result = child.wait_with_output().unwrap();
         let stderr = String::from_utf8_lossy(&result.stderr);
-        assert!(matches!(result.status.code(), Some(1 | 2)), "{flags:?}: {:?} {stderr}", result.status.code());
+        assert!(
+            matches!(result.status.code(), Some(1 | 2)),
+            "{flags:?}: {:?} {stderr}",
+            result.status.code()
+        );
         assert!(stderr.contains(name), "{flags:?}: {stderr:?} does not name {name}");
         assert!(!out.exists(), "{flags:?} wrote a report");
     }

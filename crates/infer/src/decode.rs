@@ -58,7 +58,8 @@ pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
 
 /// [`load`] with every option.
 pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeError> {
-    let (long_side, allow_truncated, background) = (options.long_side, options.allow_truncated, options.background);
+    let (long_side, allow_truncated, background) =
+        (options.long_side, options.allow_truncated, options.background);
     let fail = |message: String| DecodeError { path: path.to_path_buf(), message };
     let reader = ImageReader::open(path)
         .and_then(ImageReader::with_guessed_format)
@@ -198,7 +199,8 @@ mod tests {
         use image::{ImageEncoder, RgbImage};
         // 40 × 20, red on the left half. EXIF (little-endian TIFF) with one entry:
         // Orientation (0x0112) = 6, "rotate 90° clockwise to display".
-        let picture = RgbImage::from_fn(40, 20, |x, _| if x < 20 { Rgb([250, 0, 0]) } else { Rgb([0, 0, 250]) });
+        let picture =
+            RgbImage::from_fn(40, 20, |x, _| if x < 20 { Rgb([250, 0, 0]) } else { Rgb([0, 0, 250]) });
         let exif: Vec<u8> = [
             &b"II*\0"[..],
             &8u32.to_le_bytes(),

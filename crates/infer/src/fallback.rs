@@ -5,10 +5,10 @@
 //! and a region's learned paths are kept only where they beat it.
 
 use image::Rgb32FImage;
-use rayon::prelude::*;
 use raster::{Path, fit_outline, paint_exact};
-use tiny_skia::Pixmap;
+use rayon::prelude::*;
 use superpixel::Segmentation;
+use tiny_skia::Pixmap;
 
 /// How far (pixels) each region's outline is pushed outwards before it is fitted, so the paths
 /// of neighbouring regions overlap instead of leaving seams of the background between them;
@@ -36,7 +36,8 @@ pub fn background(image: &Rgb32FImage, above: &[Path]) -> Path {
         }
     }
     let pixels = (width as f64 * height as f64).max(1.0);
-    let color = if shown > 0.0 { sum.map(|s| (s / shown) as f32) } else { total.map(|s| (s / pixels) as f32) };
+    let color =
+        if shown > 0.0 { sum.map(|s| (s / shown) as f32) } else { total.map(|s| (s / pixels) as f32) };
     Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], color, 1.0)
 }
 
@@ -70,7 +71,8 @@ pub fn region_paths(segmentation: &Segmentation, order: &[u32]) -> Vec<Option<Pa
 
 /// The fallback drawing alone: the background, then every region's path in painter's order.
 pub fn mosaic(image: &Rgb32FImage, segmentation: &Segmentation) -> Vec<Path> {
-    let regions: Vec<Path> = region_paths(segmentation, &painter_order(segmentation)).into_iter().flatten().collect();
+    let regions: Vec<Path> =
+        region_paths(segmentation, &painter_order(segmentation)).into_iter().flatten().collect();
     std::iter::once(background(image, &regions)).chain(regions).collect()
 }
 
@@ -101,9 +103,14 @@ mod tests {
     #[test]
     fn enclosing_regions_are_painted_first() {
         let image = Rgb32FImage::from_fn(30, 30, |x, y| {
-            if (10..20).contains(&x) && (10..20).contains(&y) { Rgb([1.0, 0.0, 0.0]) } else { Rgb([0.0, 0.0, 1.0]) }
+            if (10..20).contains(&x) && (10..20).contains(&y) {
+                Rgb([1.0, 0.0, 0.0])
+            } else {
+                Rgb([0.0, 0.0, 1.0])
+            }
         });
-        let segmentation = slic(&image, &SlicOptions { n_segments: 2, compactness: 1.0, ..Default::default() }).unwrap();
+        let segmentation =
+            slic(&image, &SlicOptions { n_segments: 2, compactness: 1.0, ..Default::default() }).unwrap();
         let order = painter_order(&segmentation);
         let boxes: Vec<u64> = order
             .iter()

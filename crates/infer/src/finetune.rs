@@ -87,7 +87,8 @@ pub fn finetune(scene: &mut Scene, options: &FinetuneOptions, device: &Device) -
             let transform = CropTransform::of_box(bbox);
             let others: Vec<Path> =
                 paths.iter().enumerate().filter(|(i, _)| !members.contains(i)).map(|(_, p)| *p).collect();
-            let local: Vec<Path> = members.iter().map(|&i| to_box(paths[i], &transform, width, height)).collect();
+            let local: Vec<Path> =
+                members.iter().map(|&i| to_box(paths[i], &transform, width, height)).collect();
             let tuned = optimize(&local, &others, &image, bbox, turn, options, device);
             // Kept only if the exact drawing of the box, every path in painter's order, is
             // closer to the image: the soft render over a fixed canvas only approximates it.
@@ -145,7 +146,8 @@ fn optimize(
     let (width, height) = image.dimensions();
     let (w, h) = (bbox.width() as usize, bbox.height() as usize);
     let everything_else =
-        image::DynamicImage::ImageRgb8(render_exact(others, width, height, options.raster.background)).to_rgb32f();
+        image::DynamicImage::ImageRgb8(render_exact(others, width, height, options.raster.background))
+            .to_rgb32f();
     let planar = |source: &Rgb32FImage| -> Tensor<4> {
         let values: Vec<f32> = (0..3)
             .flat_map(|c| {

@@ -57,7 +57,9 @@ impl Default for Options {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum VectorizeError {
     /// The budget cannot hold the background and one region, or is above [`MAX_PATHS`].
-    #[error("a budget of {0} paths is out of range: at least 2 (the background and one region), at most {MAX_PATHS}")]
+    #[error(
+        "a budget of {0} paths is out of range: at least 2 (the background and one region), at most {MAX_PATHS}"
+    )]
     Budget(usize),
     /// The image could not be segmented.
     #[error(transparent)]
@@ -89,7 +91,8 @@ pub fn choose_segmentation(
     if point.oversegment <= 1.0 {
         return Ok(merged);
     }
-    let plain = segment(image, regions, &OperatingPoint { oversegment: 1.0, ..*point }.segment_options(compactness))?;
+    let plain =
+        segment(image, regions, &OperatingPoint { oversegment: 1.0, ..*point }.segment_options(compactness))?;
     let error = |segmentation: &Segmentation| {
         let (width, height) = image.dimensions();
         let drawn = render_exact(&mosaic(image, segmentation), width, height, [1.0; 3]);
@@ -120,7 +123,8 @@ pub fn vectorize(
         point.refine_share = 0.0;
     }
     let most = max_regions(image.width(), image.height());
-    let regions = options.regions.unwrap_or_else(|| point.regions(options.paths)).clamp(1, options.paths - 1).min(most);
+    let regions =
+        options.regions.unwrap_or_else(|| point.regions(options.paths)).clamp(1, options.paths - 1).min(most);
     let segmentation = choose_segmentation(image, regions, &point, options.compactness)?;
     let mut scene = Scene::new(image.clone(), segmentation);
     lap("superpixels", &mut timings);

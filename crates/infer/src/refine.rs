@@ -39,7 +39,8 @@ pub fn draw_refinement(
                 crops[r as usize] = Some(scene.region_crop(config, r));
             }
         }
-        let chosen: Vec<&RegionCrop> = worst.iter().map(|&r| crops[r as usize].as_ref().expect("cut above")).collect();
+        let chosen: Vec<&RegionCrop> =
+            worst.iter().map(|&r| crops[r as usize].as_ref().expect("cut above")).collect();
         let targets = CropBatch::new(chosen.iter().copied(), device);
         let canvas = canvas_cells(&scene.canvas_image(), chosen.iter().copied(), device);
         let canvas = targets.masked_canvas(canvas, &config.input);
@@ -51,7 +52,11 @@ pub fn draw_refinement(
                     return;
                 }
                 let path = crop_to_image(path, crop, width, height);
-                if scene.try_push(Placed { path, region: Some(region), origin: Origin::Refine }, Scope::All, 0.0) {
+                if scene.try_push(
+                    Placed { path, region: Some(region), origin: Origin::Refine },
+                    Scope::All,
+                    0.0,
+                ) {
                     kept += 1;
                 }
             }

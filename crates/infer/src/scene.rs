@@ -75,7 +75,11 @@ impl Scene {
     /// # Panics
     /// If the segmentation was not computed on an image of `target`'s size.
     pub fn new(target: Rgb32FImage, segmentation: Segmentation) -> Self {
-        assert_eq!(target.dimensions(), (segmentation.width, segmentation.height), "target and segmentation sizes");
+        assert_eq!(
+            target.dimensions(),
+            (segmentation.width, segmentation.height),
+            "target and segmentation sizes"
+        );
         let canvas = Pixmap::new(target.width(), target.height()).expect("a non-empty image");
         Self { target, segmentation, paths: Vec::new(), canvas }
     }
@@ -253,7 +257,12 @@ impl Scene {
             return None;
         }
         let clamp = |v: f32, size: u32| v.clamp(0.0, size as f32) as u32;
-        let bbox = BoundingBox { x0: clamp(x0, width), y0: clamp(y0, height), x1: clamp(x1, width), y1: clamp(y1, height) };
+        let bbox = BoundingBox {
+            x0: clamp(x0, width),
+            y0: clamp(y0, height),
+            x1: clamp(x1, width),
+            y1: clamp(y1, height),
+        };
         (bbox.x0 < bbox.x1 && bbox.y0 < bbox.y1).then_some(bbox)
     }
 
@@ -294,11 +303,14 @@ mod tests {
     use super::*;
 
     fn target() -> Rgb32FImage {
-        Rgb32FImage::from_fn(40, 30, |x, y| if x < 20 { Rgb([0.9, 0.2, 0.1]) } else { Rgb([0.1, 0.3, 0.8 * y as f32 / 30.0]) })
+        Rgb32FImage::from_fn(40, 30, |x, y| {
+            if x < 20 { Rgb([0.9, 0.2, 0.1]) } else { Rgb([0.1, 0.3, 0.8 * y as f32 / 30.0]) }
+        })
     }
 
     fn square(lo: [f32; 2], hi: [f32; 2], color: [f32; 3]) -> Placed {
-        let path = Path::quadrilateral([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], color, 1.0);
+        let path =
+            Path::quadrilateral([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], color, 1.0);
         Placed { path, region: Some(0), origin: Origin::Refine }
     }
 

@@ -13,7 +13,8 @@ fn render(svg: &str, width: u32, height: u32) -> (Rgb32FImage, Vec<u8>) {
     let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default()).unwrap();
     let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).unwrap();
     let size = tree.size();
-    let scale = resvg::tiny_skia::Transform::from_scale(width as f32 / size.width(), height as f32 / size.height());
+    let scale =
+        resvg::tiny_skia::Transform::from_scale(width as f32 / size.width(), height as f32 / size.height());
     resvg::render(&tree, scale, &mut pixmap.as_mut());
     let alpha = pixmap.pixels().iter().map(|p| p.alpha()).collect();
     let rgb = Rgb32FImage::from_fn(width, height, |x, y| {
@@ -53,8 +54,9 @@ fn bundled_models_draw_the_example_image() {
     // The floor: within a decibel of the pixel-exact superpixel mosaic with as many regions as
     // paths.
     let segmentation = slic(&image, &SlicOptions { n_segments: budget, ..Default::default() }).unwrap();
-    let mosaic =
-        Rgb32FImage::from_fn(width, height, |x, y| Rgb(segmentation.regions[segmentation.label(x, y) as usize].mean_color));
+    let mosaic = Rgb32FImage::from_fn(width, height, |x, y| {
+        Rgb(segmentation.regions[segmentation.label(x, y) as usize].mean_color)
+    });
     let (ours, floor) = (psnr(&drawn, &image), psnr(&mosaic, &image));
     assert!(ours >= floor - 1.0, "bundled models: {ours:.2} dB, mosaic of {budget} regions: {floor:.2} dB");
     std::fs::remove_dir_all(&dir).unwrap();

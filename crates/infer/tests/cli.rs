@@ -1,7 +1,7 @@
 //! `infer` end to end with small untrained models: budgets, determinism, sizes, bad input.
 
-use std::path::{Path, PathBuf};
 use std::os::unix::fs::FileTypeExt;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use burn::tensor::{DType, Device};
@@ -119,13 +119,22 @@ fn uncovered(svg: &Path, width: u32, height: u32) -> usize {
 #[test]
 fn paths_cover_every_pixel_at_any_budget_and_region_count() {
     let fixture = Fixture::new("coverage");
-    let cases: [(&str, Option<&str>); 6] =
-        [("2", None), ("3", Some("1")), ("40", Some("39")), ("100", None), ("400", Some("399")), ("60", Some("7"))];
+    let cases: [(&str, Option<&str>); 6] = [
+        ("2", None),
+        ("3", Some("1")),
+        ("40", Some("39")),
+        ("100", None),
+        ("400", Some("399")),
+        ("60", Some("7")),
+    ];
     for (paths, regions) in cases {
         for refine in [true, false] {
             let out = fixture.path("covered.svg");
-            let mut args =
-                vec![fixture.path("photo.png").to_str().unwrap().to_string(), "-o".into(), out.to_str().unwrap().into()];
+            let mut args = vec![
+                fixture.path("photo.png").to_str().unwrap().to_string(),
+                "-o".into(),
+                out.to_str().unwrap().into(),
+            ];
             args.extend(["--paths".into(), paths.to_string()]);
             if let Some(regions) = regions {
                 args.extend(["--regions".into(), regions.to_string()]);
@@ -285,14 +294,34 @@ fn commands_that_cannot_run_as_asked_are_refused_before_any_work() {
     // (arguments, what the error must say)
     let cases: Vec<(Vec<String>, &str)> = vec![
         (vec![p("photo.png"), "-o".into(), p("photo.png")], "must end in .svg"),
-        (vec![p("photo.png"), "-o".into(), p("photo.svg"), "--preview".into(), p("photo.png")], "is the input"),
+        (
+            vec![p("photo.png"), "-o".into(), p("photo.svg"), "--preview".into(), p("photo.png")],
+            "is the input",
+        ),
         (vec![p("c1/x.png"), p("c2/x.png"), "-o".into(), p("out/")], "both"),
         (vec![p("photo.png"), p("c1/x.png"), "-o".into(), p("x.svg")], "need a folder"),
-        (vec![p("photo.png"), p("c1/x.png"), "-o".into(), p("out/"), "--preview".into(), p("p.png")], "need a folder"),
+        (
+            vec![p("photo.png"), p("c1/x.png"), "-o".into(), p("out/"), "--preview".into(), p("p.png")],
+            "need a folder",
+        ),
         (vec![p("photo.png"), "-o".into(), p("a.svg"), "--metrics".into(), p("m.txt")], "must end in .json"),
         (vec![p("photo.png"), "-o".into(), p("no/such/folder/a.svg")], "does not exist"),
-        (vec![p("photo.png"), "-o".into(), p("a.svg"), "--preview".into(), p("no/such/p.png")], "does not exist"),
-        (vec![p("photo.png"), "-o".into(), p("a.svg"), "--paths".into(), "40".into(), "--regions".into(), "40".into()], "below --paths"),
+        (
+            vec![p("photo.png"), "-o".into(), p("a.svg"), "--preview".into(), p("no/such/p.png")],
+            "does not exist",
+        ),
+        (
+            vec![
+                p("photo.png"),
+                "-o".into(),
+                p("a.svg"),
+                "--paths".into(),
+                "40".into(),
+                "--regions".into(),
+                "40".into(),
+            ],
+            "below --paths",
+        ),
         (vec!["-".into(), "-".into(), "-o".into(), p("out/")], "only once"),
         (vec![p("photo.png"), p("c1/x.png"), "-o".into(), "-".into()], "stdout"),
     ];
@@ -321,7 +350,8 @@ fn wild_flag_values_exit_with_a_usage_error_and_never_hang() {
             let code = result.status.code();
             // 0 (a valid value), 1 (refused at run time) or 2 (refused by the parser); never a panic.
             assert!(matches!(code, Some(0 | 1 | 2)), "{args:?}: {code:?} {}", text(&result.stderr));
-            let accepted = (flag == "--finetune-steps" && value == "0") || (flag == "--finetune-secs" && value == "0");
+            let accepted =
+                (flag == "--finetune-steps" && value == "0") || (flag == "--finetune-secs" && value == "0");
             assert_eq!(code == Some(0), accepted, "{args:?}: {}", text(&result.stderr));
         }
     }
@@ -331,7 +361,13 @@ fn wild_flag_values_exit_with_a_usage_error_and_never_hang() {
 fn devices_stdin_and_stdout_work_as_files() {
     let fixture = Fixture::new("streams");
     let photo = fixture.path("photo.png");
-    let args = vec![photo.to_str().unwrap().to_string(), "-o".into(), "/dev/null".into(), "--paths".into(), "10".into()];
+    let args = vec![
+        photo.to_str().unwrap().to_string(),
+        "-o".into(),
+        "/dev/null".into(),
+        "--paths".into(),
+        "10".into(),
+    ];
     let result = infer_within(&fixture, &args, 60);
     assert!(result.status.success(), "{}", text(&result.stderr));
     assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
@@ -345,9 +381,16 @@ fn devices_stdin_and_stdout_work_as_files() {
     let svg = text(&result.stdout);
     assert!(svg.starts_with("<svg") && svg.matches("<path").count() == 10, "{svg}");
     assert!(result.stderr.is_empty(), "--quiet: {}", text(&result.stderr));
-    let result = infer_within(&fixture, &[photo.to_str().unwrap().into(), "-o".into(), fixture.path("one.svg").to_str().unwrap().into()], 60);
+    let result = infer_within(
+        &fixture,
+        &[photo.to_str().unwrap().into(), "-o".into(), fixture.path("one.svg").to_str().unwrap().into()],
+        60,
+    );
     let stderr = text(&result.stderr);
-    assert!(stderr.contains("models: coarse") && stderr.contains("one.svg: ") && stderr.contains(" paths"), "{stderr}");
+    assert!(
+        stderr.contains("models: coarse") && stderr.contains("one.svg: ") && stderr.contains(" paths"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -355,7 +398,15 @@ fn regions_are_groups_and_decimals_are_chosen() {
     let fixture = Fixture::new("layers");
     let photo = fixture.path("photo.png").to_str().unwrap().to_string();
     let out = fixture.path("layers.svg");
-    let args = vec![photo, "-o".into(), out.to_str().unwrap().into(), "--paths".into(), "20".into(), "--decimals".into(), "0".into()];
+    let args = vec![
+        photo,
+        "-o".into(),
+        out.to_str().unwrap().into(),
+        "--paths".into(),
+        "20".into(),
+        "--decimals".into(),
+        "0".into(),
+    ];
     let result = infer_within(&fixture, &args, 60);
     assert!(result.status.success(), "{}", text(&result.stderr));
     let svg = std::fs::read_to_string(&out).unwrap();
@@ -393,7 +444,17 @@ fn transparent_pixels_take_the_background_colour() {
         assert!(pixel.iter().zip(left).all(|(a, b)| a.abs_diff(b) < 30), "{background}: {pixel:?}");
         assert!(drawn.get_pixel(35, 15).0[2] > 200, "the opaque half stays blue");
     }
-    let bad = infer_within(&fixture, &[fixture.path("alpha.png").to_str().unwrap().into(), "-o".into(), fixture.path("x.svg").to_str().unwrap().into(), "--background".into(), "red".into()], 60);
+    let bad = infer_within(
+        &fixture,
+        &[
+            fixture.path("alpha.png").to_str().unwrap().into(),
+            "-o".into(),
+            fixture.path("x.svg").to_str().unwrap().into(),
+            "--background".into(),
+            "red".into(),
+        ],
+        60,
+    );
     assert_eq!(bad.status.code(), Some(2));
     assert!(text(&bad.stderr).contains("#rrggbb"));
 }

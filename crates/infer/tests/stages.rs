@@ -31,7 +31,8 @@ fn no_stage_lowers_the_psnr() {
     let refine = models.refine.as_ref().unwrap();
     let budget = 60;
     for image in images() {
-        let segmentation = segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
+        let segmentation =
+            segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
         let score = |scene: &Scene| psnr(&scene.canvas_image(), &image);
 
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
@@ -39,7 +40,14 @@ fn no_stage_lowers_the_psnr() {
         draw_coarse(&models.coarse, &models.config, &mut fallback, no_coarse, 16, &device);
 
         let mut scene = Scene::new(image.clone(), segmentation);
-        draw_coarse(&models.coarse, &models.config, &mut scene, CoarseBudget { per_region: 2, total: 45 }, 16, &device);
+        draw_coarse(
+            &models.coarse,
+            &models.config,
+            &mut scene,
+            CoarseBudget { per_region: 2, total: 45 },
+            16,
+            &device,
+        );
         let after_coarse = score(&scene);
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
         assert!(scene.len() <= 45);
@@ -50,7 +58,10 @@ fn no_stage_lowers_the_psnr() {
         assert!(scene.len() <= budget);
         let refined = scene.paths().iter().filter(|p| p.origin == Origin::Refine).count();
         let coarse_kept = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
-        assert!(coarse_kept > 0 && refined > 0, "the stages kept {coarse_kept} and {refined} paths: nothing was compared");
+        assert!(
+            coarse_kept > 0 && refined > 0,
+            "the stages kept {coarse_kept} and {refined} paths: nothing was compared"
+        );
 
         let options = FinetuneOptions { budget: Budget::StepsPerRegion(4), ..FinetuneOptions::default() };
         finetune(&mut scene, &options, &device.clone().autodiff());

@@ -107,7 +107,14 @@ impl Checkpoint {
     pub fn of_model<M: Module>(stage: Stage, model_config: &ModelConfig, model: &M, dtype: DType) -> Self {
         let record = model.clone().into_record().into_bytes().expect("a record serializes to memory");
         let model = convert(&record, dtype).expect("a fresh record converts");
-        Self { stage, model_config: model_config.clone(), model, optimizer: None, training: None, inference: None }
+        Self {
+            stage,
+            model_config: model_config.clone(),
+            model,
+            optimizer: None,
+            training: None,
+            inference: None,
+        }
     }
 
     /// The same weights without the optimizer state, stored in `dtype`: what inference needs,
@@ -144,7 +151,8 @@ impl Checkpoint {
             writer = writer.with_metadata("supersvg.training", training);
         }
         if let Some(point) = &self.inference {
-            writer = writer.with_metadata("supersvg.inference", &serde_json::to_string(point).expect("serializes"));
+            writer = writer
+                .with_metadata("supersvg.inference", &serde_json::to_string(point).expect("serializes"));
         }
         writer.write_to_file(path).map_err(|err| io(err.to_string()))
     }

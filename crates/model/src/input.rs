@@ -145,8 +145,9 @@ mod tests {
         let segmentation = slic(&image, &SlicOptions { n_segments: 6, ..Default::default() }).unwrap();
         let config = ModelConfig { input_size: 16, ..ModelConfig::preset(Preset::Cpu) };
         let device = Device::flex();
-        let crops: Vec<RegionCrop> =
-            (0..segmentation.regions.len() as u32).map(|r| config.region_crop(&segmentation, &image, r)).collect();
+        let crops: Vec<RegionCrop> = (0..segmentation.regions.len() as u32)
+            .map(|r| config.region_crop(&segmentation, &image, r))
+            .collect();
         let batch = CropBatch::new(&crops, &device);
         // The canvas of a perfect drawing, masked, is the crop itself (up to resampling: both
         // average the same pixels where the cell lies wholly inside the region).

@@ -73,7 +73,8 @@ mod tests {
     fn regions_leave_room_for_every_stage() {
         let mosaic = OperatingPoint::default();
         assert_eq!(mosaic.regions(500), 499);
-        let split = OperatingPoint { coarse_paths: 3, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
+        let split =
+            OperatingPoint { coarse_paths: 3, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
         assert_eq!(split.regions(500), 99); // 99 · 4 + 1 = 397 ≤ 400
         assert_eq!(split.regions(2), 1);
         assert!(OperatingPoint { refine_share: 1.0, ..mosaic }.validate().is_err());

@@ -47,7 +47,8 @@ pub fn fit_outline(outline: &[[f32; 2]], grow: f32, color: [f32; 3], alpha: f32)
                 if !spans_ok(&trial) {
                     continue;
                 }
-                let (e_before, e_after) = (segment_error(&samples, &trial, before), segment_error(&samples, &trial, j));
+                let (e_before, e_after) =
+                    (segment_error(&samples, &trial, before), segment_error(&samples, &trial, j));
                 if e_before + e_after < errors[before] + errors[j] {
                     (anchors, errors[before], errors[j], moved) = (trial, e_before, e_after, true);
                 }
@@ -79,7 +80,8 @@ fn span(samples: &[[f32; 2]], from: usize, to: usize) -> Vec<[f32; 2]> {
 /// Whether consecutive anchors keep their order around the loop with at least [`MIN_SPAN`]
 /// samples between them.
 fn spans_ok(anchors: &[usize; SEGMENTS]) -> bool {
-    let total: usize = (0..SEGMENTS).map(|j| (anchors[(j + 1) % SEGMENTS] + SAMPLES - anchors[j]) % SAMPLES).sum();
+    let total: usize =
+        (0..SEGMENTS).map(|j| (anchors[(j + 1) % SEGMENTS] + SAMPLES - anchors[j]) % SAMPLES).sum();
     total == SAMPLES
         && (0..SEGMENTS).all(|j| (anchors[(j + 1) % SEGMENTS] + SAMPLES - anchors[j]) % SAMPLES >= MIN_SPAN)
 }
@@ -204,7 +206,11 @@ fn handles(run: &[[f32; 2]], t: &[f32], first: [f32; 2], last: [f32; 2]) -> [[f3
     let solve = |c: usize| ((a22 * r1[c] - a12 * r2[c]) / det, (a11 * r2[c] - a12 * r1[c]) / det);
     let ((x1, x2), (y1, y2)) = (solve(0), solve(1));
     let control = [first, [x1, y1], [x2, y2], last];
-    if control.iter().flatten().all(|v| v.is_finite()) { control } else { [first, straight[0], straight[1], last] }
+    if control.iter().flatten().all(|v| v.is_finite()) {
+        control
+    } else {
+        [first, straight[0], straight[1], last]
+    }
 }
 
 /// One Newton step of `t` towards the curve point nearest to `q`, kept in [0, 1].
@@ -220,10 +226,8 @@ fn newton_step(control: &[[f32; 2]; 4], q: [f32; 2], t: f32) -> f32 {
     }
     let offset = [point[0] - q[0], point[1] - q[1]];
     let numerator = offset[0] * first[0] + offset[1] * first[1];
-    let denominator = first[0] * first[0]
-        + first[1] * first[1]
-        + offset[0] * second[0]
-        + offset[1] * second[1];
+    let denominator =
+        first[0] * first[0] + first[1] * first[1] + offset[0] * second[0] + offset[1] * second[1];
     if denominator.abs() <= f32::EPSILON || !denominator.is_finite() {
         return t;
     }

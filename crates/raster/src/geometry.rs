@@ -66,12 +66,18 @@ impl Path {
     /// inside the convex hull of its control points). Non-finite coordinates give non-finite
     /// bounds.
     pub fn bounds(&self) -> Bounds {
-        let mut bounds = Bounds { x0: f32::INFINITY, y0: f32::INFINITY, x1: -f32::INFINITY, y1: -f32::INFINITY };
+        let mut bounds =
+            Bounds { x0: f32::INFINITY, y0: f32::INFINITY, x1: -f32::INFINITY, y1: -f32::INFINITY };
         for &[x, y] in &self.points {
             if !(x.is_finite() && y.is_finite()) {
                 return Bounds { x0: f32::NAN, y0: f32::NAN, x1: f32::NAN, y1: f32::NAN };
             }
-            bounds = Bounds { x0: bounds.x0.min(x), y0: bounds.y0.min(y), x1: bounds.x1.max(x), y1: bounds.y1.max(y) };
+            bounds = Bounds {
+                x0: bounds.x0.min(x),
+                y0: bounds.y0.min(y),
+                x1: bounds.x1.max(x),
+                y1: bounds.y1.max(y),
+            };
         }
         bounds
     }
@@ -106,7 +112,9 @@ mod tests {
         let bounds = path.bounds();
         assert_eq!(bounds, Bounds { x0: 0.1, y0: -0.2, x1: 0.6, y1: 0.6 });
         let inside = |v: f32, lo: f32, hi: f32| v >= lo - 1e-6 && v <= hi + 1e-6;
-        assert!(polygon.iter().all(|&[x, y]| inside(x, bounds.x0, bounds.x1) && inside(y, bounds.y0, bounds.y1)));
+        assert!(
+            polygon.iter().all(|&[x, y]| inside(x, bounds.x0, bounds.x1) && inside(y, bounds.y0, bounds.y1))
+        );
         assert!(bernstein(0.3).iter().sum::<f32>() - 1.0 < 1e-6);
     }
 }

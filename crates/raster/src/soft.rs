@@ -366,7 +366,8 @@ mod tests {
             assert!((a - b).abs() < 1e-6, "{a} vs {b}");
         }
         // Invisible paths count too: the union says where paths reach, not what they paint.
-        let white = paths.with_colors(Tensor::ones([1, 1, 3], &device)).with_alpha(Tensor::ones([2, 7, 1], &device));
+        let white =
+            paths.with_colors(Tensor::ones([1, 1, 3], &device)).with_alpha(Tensor::ones([2, 7, 1], &device));
         let black = SoftRasterOptions { background: [0.0; 3], ..options };
         let expected = render_soft(&white, 24, 20, &black).narrow(1, 0, 1);
         for (a, b) in values(union).iter().zip(values(expected)) {

@@ -177,7 +177,9 @@ mod tests {
     fn consecutive_paths_of_a_region_share_a_group() {
         let paths = [square(1.0), square(1.0), square(1.0), square(1.0), square(1.0)];
         let layers = [None, Some(3), Some(3), Some(5), Some(3)];
-        let svg = to_svg_with(&paths, &layers, 100, 100, &SvgOptions { decimals: 0, ..SvgOptions::default() }).unwrap();
+        let svg =
+            to_svg_with(&paths, &layers, 100, 100, &SvgOptions { decimals: 0, ..SvgOptions::default() })
+                .unwrap();
         assert_eq!(svg.matches("<g class=\"region-3\">").count(), 2, "{svg}");
         assert_eq!(svg.matches("<g class=\"region-5\">").count(), 1);
         assert_eq!(svg.matches("</g>").count(), 3);

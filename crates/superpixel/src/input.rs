@@ -58,7 +58,11 @@ mod tests {
 
     #[test]
     fn empty_image_is_an_error() {
-        let black = to_rgb_over(&DynamicImage::ImageRgba8(ImageBuffer::from_pixel(1, 1, Rgba([255, 0, 0, 0]))), [0.0, 0.5, 0.0]).unwrap();
+        let black = to_rgb_over(
+            &DynamicImage::ImageRgba8(ImageBuffer::from_pixel(1, 1, Rgba([255, 0, 0, 0]))),
+            [0.0, 0.5, 0.0],
+        )
+        .unwrap();
         assert_eq!(black.get_pixel(0, 0).0, [0.0, 0.5, 0.0], "fully transparent shows the background");
         let empty = DynamicImage::ImageLuma8(GrayImage::new(0, 3));
         assert_eq!(to_rgb_over_white(&empty), Err(InputError::Empty { width: 0, height: 3 }));

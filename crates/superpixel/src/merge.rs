@@ -67,13 +67,18 @@ impl Default for SegmentOptions {
 /// at the pixel count), then merged down by colour. SLIC itself returns a few percent fewer
 /// regions than asked for (its grid and connectivity steps), so an oversegment slightly above
 /// 1 gives the count exactly.
-pub fn segment(image: &Rgb32FImage, regions: usize, options: &SegmentOptions) -> Result<Segmentation, SlicError> {
+pub fn segment(
+    image: &Rgb32FImage,
+    regions: usize,
+    options: &SegmentOptions,
+) -> Result<Segmentation, SlicError> {
     if !(options.oversegment.is_finite() && options.oversegment >= 1.0) {
         return Err(SlicError::BadOption("oversegment must be at least 1"));
     }
     let pixels = (image.width() as usize) * (image.height() as usize);
     let asked = ((regions as f64 * options.oversegment as f64).ceil() as usize).clamp(1, pixels.max(1));
-    let slic_options = SlicOptions { n_segments: asked, compactness: options.compactness, ..Default::default() };
+    let slic_options =
+        SlicOptions { n_segments: asked, compactness: options.compactness, ..Default::default() };
     Ok(slic(image, &slic_options)?.limit_regions(image, regions.max(1), options.min_compactness as f64))
 }
 
@@ -121,7 +126,8 @@ impl Merging {
     fn new(segmentation: &Segmentation, min_compactness: f64) -> Self {
         let count = segmentation.regions.len();
         let size = segmentation.regions.iter().map(|r| r.pixels as f64).collect();
-        let sum = segmentation.regions.iter().map(|r| r.mean_color.map(|c| c as f64 * r.pixels as f64)).collect();
+        let sum =
+            segmentation.regions.iter().map(|r| r.mean_color.map(|c| c as f64 * r.pixels as f64)).collect();
         let mut borders = vec![BTreeMap::new(); count];
         let mut perimeter = vec![0.0; count];
         let (width, height) = (segmentation.width as usize, segmentation.height as usize);
@@ -184,7 +190,8 @@ impl Merging {
     fn compactness_of_union(&self, a: u32, b: u32) -> f64 {
         let shared = self.borders[a as usize].get(&b).copied().unwrap_or(0.0);
         let perimeter = self.perimeter[a as usize] + self.perimeter[b as usize] - 2.0 * shared;
-        4.0 * std::f64::consts::PI * (self.size[a as usize] + self.size[b as usize]) / perimeter.powi(2).max(1.0)
+        4.0 * std::f64::consts::PI * (self.size[a as usize] + self.size[b as usize])
+            / perimeter.powi(2).max(1.0)
     }
 
     /// Merges the touching pair of roots that is cheapest to merge among those whose union is

@@ -29,7 +29,9 @@ impl Segmentation {
         // The first pixel in row-major order lies on the outer boundary: start on its top edge,
         // heading east, the region below (on the right).
         let y = bbox.y0 as i64;
-        let x = (bbox.x0 as i64..bbox.x1 as i64).find(|&x| inside(x, y)).expect("every region has a pixel in its top row");
+        let x = (bbox.x0 as i64..bbox.x1 as i64)
+            .find(|&x| inside(x, y))
+            .expect("every region has a pixel in its top row");
         let start = ((x, y), 0usize);
         let (mut corner, mut heading) = start;
         let mut polygon = Vec::new();

@@ -53,7 +53,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut model = CoarseModel::new(&model_config, &device);
     let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
     let mut optimizer = adamw(&config.train);
-    let source = Arc::new(DataSource::new(&config.data, &model_config, config.train.batch_size, config.train.seed)?);
+    let source =
+        Arc::new(DataSource::new(&config.data, &model_config, config.train.batch_size, config.train.seed)?);
     let mut loader = Loader::start(source, 0, config.data.workers, config.data.prefetch);
 
     let mut phases: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
@@ -73,13 +74,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             continue;
         }
         totals.push(started.elapsed().as_secs_f64());
-        let step_phases = output.phases.into_iter().chain([("data", data), ("backward", backward), ("optimizer", optimizer_seconds)]);
+        let step_phases = output.phases.into_iter().chain([
+            ("data", data),
+            ("backward", backward),
+            ("optimizer", optimizer_seconds),
+        ]);
         for (name, seconds) in step_phases {
             phases.entry(name).or_default().push(seconds);
         }
     }
     let per_step = median(&mut totals);
-    let split: BTreeMap<&str, f64> = phases.iter_mut().map(|(name, values)| (*name, median(values))).collect();
+    let split: BTreeMap<&str, f64> =
+        phases.iter_mut().map(|(name, values)| (*name, median(values))).collect();
     for (name, seconds) in &split {
         println!("{name:>10}: {:7.1} ms ({:4.1} %)", seconds * 1e3, 100.0 * seconds / per_step);
     }

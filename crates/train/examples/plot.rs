@@ -47,14 +47,16 @@ fn read(run: &PathBuf) -> Result<Curve, String> {
     if points.is_empty() {
         return Err(format!("{}: no validation lines (val_*)", path.display()));
     }
-    let label = run.file_name().map_or_else(|| run.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let label =
+        run.file_name().map_or_else(|| run.display().to_string(), |n| n.to_string_lossy().into_owned());
     Ok(Curve { label, points })
 }
 
 /// Panel geometry: left, top, width, height in SVG units.
 const PANEL: (f64, f64, f64, f64) = (70.0, 40.0, 420.0, 260.0);
 /// Distinct line colours (Tableau 10).
-const COLOURS: [&str; 8] = ["#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#9c755f"];
+const COLOURS: [&str; 8] =
+    ["#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#9c755f"];
 
 /// One panel at horizontal offset `dx`: `series(curve)` gives (step, value) lines, solid and
 /// dashed; y from `low` to `high`.
@@ -93,20 +95,38 @@ fn panel(
             top + height + 16.0
         );
     }
-    let _ = write!(svg, r#"<text x="{}" y="{}" text-anchor="middle" font-size="12">step</text>"#, left + width / 2.0, top + height + 32.0);
+    let _ = write!(
+        svg,
+        r#"<text x="{}" y="{}" text-anchor="middle" font-size="12">step</text>"#,
+        left + width / 2.0,
+        top + height + 32.0
+    );
     for (index, curve) in curves.iter().enumerate() {
         let colour = COLOURS[index % COLOURS.len()];
         let line = |pick: &dyn Fn(&(f64, f64, f64, f64)) -> Option<f64>| -> String {
-            curve.points.iter().filter_map(|p| pick(p).map(|v| format!("{:.1},{:.1}", x(p.0), y(v)))).collect::<Vec<_>>().join(" ")
+            curve
+                .points
+                .iter()
+                .filter_map(|p| pick(p).map(|v| format!("{:.1},{:.1}", x(p.0), y(v))))
+                .collect::<Vec<_>>()
+                .join(" ")
         };
         let solid = line(&|p| Some(series(p).0));
         let dashed = line(&|p| series(p).1);
         let _ = write!(svg, r#"<polyline points="{solid}" fill="none" stroke="{colour}" stroke-width="2"/>"#);
         for p in &curve.points {
-            let _ = write!(svg, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#, x(p.0), y(series(p).0));
+            let _ = write!(
+                svg,
+                r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#,
+                x(p.0),
+                y(series(p).0)
+            );
         }
         if !dashed.is_empty() {
-            let _ = write!(svg, r#"<polyline points="{dashed}" fill="none" stroke="{colour}" stroke-width="1.5" stroke-dasharray="5 4"/>"#);
+            let _ = write!(
+                svg,
+                r#"<polyline points="{dashed}" fill="none" stroke="{colour}" stroke-width="1.5" stroke-dasharray="5 4"/>"#
+            );
         }
     }
 }
@@ -128,8 +148,24 @@ fn main() {
     let mut svg = format!(
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}" font-family="DejaVu Sans, sans-serif"><rect width="100%" height="100%" fill="white"/>"#
     );
-    panel(&mut svg, 0.0, "PSNR over the flat fill (dB): kept paths solid, all paths dashed", &curves, max_step, (low.floor(), high.ceil()), &|p| (p.1, Some(p.2)));
-    panel(&mut svg, 540.0, "spill (area outside the dilated mask / path area)", &curves, max_step, (0.0, spill_high * 1.1), &|p| (p.3, None));
+    panel(
+        &mut svg,
+        0.0,
+        "PSNR over the flat fill (dB): kept paths solid, all paths dashed",
+        &curves,
+        max_step,
+        (low.floor(), high.ceil()),
+        &|p| (p.1, Some(p.2)),
+    );
+    panel(
+        &mut svg,
+        540.0,
+        "spill (area outside the dilated mask / path area)",
+        &curves,
+        max_step,
+        (0.0, spill_high * 1.1),
+        &|p| (p.3, None),
+    );
     for (index, curve) in curves.iter().enumerate() {
         let y = 350.0 + 20.0 * index as f64;
         let colour = COLOURS[index % COLOURS.len()];

@@ -31,8 +31,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
     for path in &args.checkpoints {
         let (model, model_config) = load_coarse(path, &device)?;
-        let set = Validation::build(&config.validation, &config.data, &model_config, config.loss.boundary.dilation)?
-            .ok_or("the config has no [validation] images")?;
+        let set = Validation::build(
+            &config.validation,
+            &config.data,
+            &model_config,
+            config.loss.boundary.dilation,
+        )?
+        .ok_or("the config has no [validation] images")?;
         let crops = CropBatch::new(set.crops(), &device);
         let scores = set.score(&objective.draw(&model, &crops).to_scenes());
         let mut line = serde_json::to_value(scores)?;

@@ -241,7 +241,12 @@ pub struct CoarseLoss {
 
 impl Default for CoarseLoss {
     fn default() -> Self {
-        Self { canvas: Canvas::Background, l2_levels: 3, path_efficiency: 1e-5, boundary: BoundaryWeight::default() }
+        Self {
+            canvas: Canvas::Background,
+            l2_levels: 3,
+            path_efficiency: 1e-5,
+            boundary: BoundaryWeight::default(),
+        }
     }
 }
 
@@ -409,7 +414,10 @@ impl DataConfig {
             "data.segments must be [low, high] with 1 ≤ low ≤ high",
         )?;
         check(self.compactness > 0.0, "data.compactness must be positive")?;
-        check(self.oversegment.is_finite() && self.oversegment >= 1.0, "data.oversegment must be at least 1")?;
+        check(
+            self.oversegment.is_finite() && self.oversegment >= 1.0,
+            "data.oversegment must be at least 1",
+        )?;
         check((0.0..=1.0).contains(&self.min_compactness), "data.min_compactness must be within [0, 1]")?;
         check(self.regions_per_scene >= 1, "data.regions_per_scene must be at least 1")?;
         check(self.image_size >= 16, "data.image_size must be at least 16")?;

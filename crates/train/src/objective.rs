@@ -97,7 +97,11 @@ impl Objective for CoarseObjective {
             Canvas::Background => render_soft_with_union(&paths, size, size, &self.raster),
             Canvas::MeanColour => {
                 let [batch, _] = paths.dims();
-                paint_soft_with_union(crops.mean_colours().expand([batch, 3, size, size]), &paths, &self.raster)
+                paint_soft_with_union(
+                    crops.mean_colours().expand([batch, 3, size, size]),
+                    &paths,
+                    &self.raster,
+                )
             }
         };
         laps.lap("rasterizer");

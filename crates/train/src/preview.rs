@@ -27,7 +27,9 @@ pub fn write_preview(
         let target = RgbImage::from_fn(size as u32, size as u32, |x, y| {
             let cell = y as usize * size + x as usize;
             let inside = crop.mask[cell] > 0.5;
-            Rgb(std::array::from_fn(|c| if inside { to_u8(crop.pixels[c * size * size + cell]) } else { 128 }))
+            Rgb(std::array::from_fn(
+                |c| if inside { to_u8(crop.pixels[c * size * size + cell]) } else { 128 },
+            ))
         });
         let soft = RgbImage::from_fn(size as u32, size as u32, |x, y| {
             let at = |c: usize| render[((row * 3 + c) * size + y as usize) * size + x as usize];

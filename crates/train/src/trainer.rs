@@ -19,8 +19,8 @@ use crate::objective::Objective;
 use crate::optimizer::adamw;
 use crate::preview::write_preview;
 use crate::report::{Reporter, StepRecord};
-use crate::validation::Validation;
 use crate::schedule::learning_rate;
+use crate::validation::Validation;
 
 /// Why training stopped early.
 #[derive(Debug, thiserror::Error)]
@@ -277,7 +277,10 @@ fn validate<O: Objective>(
     reporter: &mut Reporter,
     dir: &Path,
 ) -> Result<(), TrainError> {
-    let io = |path: &Path, err: &dyn std::fmt::Display| TrainError::Io { path: path.to_path_buf(), message: err.to_string() };
+    let io = |path: &Path, err: &dyn std::fmt::Display| TrainError::Io {
+        path: path.to_path_buf(),
+        message: err.to_string(),
+    };
     let device = device.clone().inner();
     let crops = CropBatch::new(validation.crops(), &device);
     let paths = objective.draw(&model.valid(), &crops);
@@ -285,9 +288,11 @@ fn validate<O: Objective>(
     reporter.validation(step, &scores).map_err(|err| io(dir, &err))?;
     let [batch, _, size, _] = crops.pixels.dims();
     let flat = crops.mean_colours().expand([batch, 3, size, size]);
-    let render: Vec<f32> = paint_soft(flat, &paths, objective.raster()).try_to_vec_as().expect("render is readable");
+    let render: Vec<f32> =
+        paint_soft(flat, &paths, objective.raster()).try_to_vec_as().expect("render is readable");
     let path = dir.join(format!("preview-{step:06}.png"));
-    write_preview(&path, validation.crops(), &render, &paths, &validation.mean_colours(), 8).map_err(|err| io(&path, &err))
+    write_preview(&path, validation.crops(), &render, &paths, &validation.mean_colours(), 8)
+        .map_err(|err| io(&path, &err))
 }
 
 /// Builds a model of `config` (its initialization drawn from `seed` on `device`), or takes the

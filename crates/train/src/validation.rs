@@ -244,10 +244,20 @@ mod tests {
     fn flat_fill_is_the_bar_and_helpful_paths_clear_it() {
         let dir = std::env::temp_dir().join(format!("supersvg-validation-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        RgbImage::from_fn(64, 48, |x, y| if x < 32 && y < 24 { Rgb([230, 40, 40]) } else { Rgb([20, 40, 200]) })
-            .save(dir.join("a.png"))
-            .unwrap();
-        let config = ValidationConfig { images: Some(dir.clone()), crops: 3, segments: [2, 2], every: 10, image_size: 64 };
+        RgbImage::from_fn(
+            64,
+            48,
+            |x, y| if x < 32 && y < 24 { Rgb([230, 40, 40]) } else { Rgb([20, 40, 200]) },
+        )
+        .save(dir.join("a.png"))
+        .unwrap();
+        let config = ValidationConfig {
+            images: Some(dir.clone()),
+            crops: 3,
+            segments: [2, 2],
+            every: 10,
+            image_size: 64,
+        };
         let data = DataConfig { image_size: 64, ..Default::default() };
         let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
         let validation = Validation::build(&config, &data, &model, 1).unwrap().unwrap();
@@ -255,10 +265,14 @@ mod tests {
 
         let nothing = vec![Vec::new(); validation.crops().len()];
         let scores = validation.score(&nothing);
-        assert_eq!((scores.psnr_drawn, scores.psnr_kept, scores.kept), (scores.psnr_flat, scores.psnr_flat, 0.0));
+        assert_eq!(
+            (scores.psnr_drawn, scores.psnr_kept, scores.kept),
+            (scores.psnr_flat, scores.psnr_flat, 0.0)
+        );
         // A path in the wrong colour over the whole crop: drawn is worse, kept leaves it out,
         // and it spills wherever the region does not fill the crop.
-        let wrong = Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], [0.0, 1.0, 0.0], 1.0);
+        let wrong =
+            Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], [0.0, 1.0, 0.0], 1.0);
         let scores_wrong = validation.score(&vec![vec![wrong]; validation.crops().len()]);
         assert!(scores_wrong.psnr_drawn < scores.psnr_flat);
         assert_eq!(scores_wrong.psnr_kept, scores.psnr_flat);

@@ -128,21 +128,33 @@ fn validation_scores_and_previews_are_written() {
     let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     let held_out = scratch("held-out");
     std::fs::create_dir_all(&held_out).unwrap();
-    image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([(x * 4) as u8, (y * 5) as u8, if x < 30 { 200 } else { 30 }]))
-        .save(held_out.join("photo.png"))
-        .unwrap();
+    image::RgbImage::from_fn(64, 48, |x, y| {
+        image::Rgb([(x * 4) as u8, (y * 5) as u8, if x < 30 { 200 } else { 30 }])
+    })
+    .save(held_out.join("photo.png"))
+    .unwrap();
     let mut config = smoke_coarse();
     config.train.steps = 10;
     config.loss.canvas = train::config::Canvas::MeanColour;
-    config.validation =
-        ValidationConfig { images: Some(held_out.clone()), crops: 6, segments: [8, 16], every: 5, image_size: 64 };
+    config.validation = ValidationConfig {
+        images: Some(held_out.clone()),
+        crops: 6,
+        segments: [8, 16],
+        every: 5,
+        image_size: 64,
+    };
     let device = Device::flex().autodiff();
     let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
     let dir = scratch("validated");
     let path = checkpoint_path::<CoarseObjective>(&dir);
-    let start =
-        model_from(|c| CoarseModel::new(c, &device), &config.model.0, None, &path, (&device, config.train.seed))
-            .unwrap();
+    let start = model_from(
+        |c| CoarseModel::new(c, &device),
+        &config.model.0,
+        None,
+        &path,
+        (&device, config.train.seed),
+    )
+    .unwrap();
     let set = Validation::build(&config.validation, &config.data, &start.model_config, 2).unwrap().unwrap();
     assert_eq!(set.crops().len(), 6);
     let run = Run { dir: dir.clone(), device, validation: Some((set, config.validation.every)) };

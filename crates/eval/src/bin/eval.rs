@@ -98,7 +98,9 @@ fn run(args: Args) -> Result<(), String> {
         return Err(format!("--peers: unknown peer `{bad}` (known: {})", PEERS.join(", ")));
     }
     if let Some(bad) = args.paths.iter().find(|&&p| !(2..=MAX_PATHS).contains(&p)) {
-        return Err(format!("--paths: {bad} is out of range (2, the background and one region, to {MAX_PATHS})"));
+        return Err(format!(
+            "--paths: {bad} is out of range (2, the background and one region, to {MAX_PATHS})"
+        ));
     }
     if !(16..=8192).contains(&args.size) {
         return Err(format!("--size: {} is out of range (16 to 8192 pixels)", args.size));
@@ -194,7 +196,8 @@ fn run(args: Args) -> Result<(), String> {
             record(budget, "SuperSVG-B (ours)", drawing(&result.scene), seconds, parts, &mut tiles);
             if let Some(limit) = args.finetune_secs {
                 let tuning = Instant::now();
-                let options_f = FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
+                let options_f =
+                    FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
                 finetune(&mut result.scene, &options_f, &device.clone().autodiff());
                 let total = seconds + tuning.elapsed().as_secs_f64();
                 let parts = Some(anatomy(&result.scene));

@@ -90,8 +90,8 @@ fn run(args: Args) -> Result<(), String> {
             }
         }
     }
-    let images: Vec<_> = files_in(&args.dir)?
-        .iter().filter_map(|path| load(path, args.size).ok().map(|l| l.image)).collect();
+    let images: Vec<_> =
+        files_in(&args.dir)?.iter().filter_map(|path| load(path, args.size).ok().map(|l| l.image)).collect();
     if images.is_empty() {
         return Err(format!("{}: no readable images", args.dir.display()));
     }
@@ -99,7 +99,12 @@ fn run(args: Args) -> Result<(), String> {
     let mut measured = Vec::new();
     for (index, &point) in points.iter().enumerate() {
         let budgets = args.paths.len();
-        let mut result = Measured { point, psnr: vec![0.0; budgets], seconds: vec![0.0; budgets], stages: vec![[0.0; 4]; budgets] };
+        let mut result = Measured {
+            point,
+            psnr: vec![0.0; budgets],
+            seconds: vec![0.0; budgets],
+            stages: vec![[0.0; 4]; budgets],
+        };
         for (b, &paths) in args.paths.iter().enumerate() {
             for image in &images {
                 let started = Instant::now();
@@ -133,10 +138,18 @@ fn run(args: Args) -> Result<(), String> {
     for paths in &args.paths {
         let _ = write!(text, " PSNR @{paths} | stages @{paths} | s @{paths} |");
     }
-    let _ = write!(text, " mean PSNR |\n| ---: | ---: | ---: | ---: |{} ---: |\n", " ---: | ---: | ---: |".repeat(args.paths.len()));
+    let _ = write!(
+        text,
+        " mean PSNR |\n| ---: | ---: | ---: | ---: |{} ---: |\n",
+        " ---: | ---: | ---: |".repeat(args.paths.len())
+    );
     for m in &measured {
         let p = m.point;
-        let _ = write!(text, "| {} | {} | {} | {} |", p.coarse_paths, p.refine_share, p.oversegment, p.min_compactness);
+        let _ = write!(
+            text,
+            "| {} | {} | {} | {} |",
+            p.coarse_paths, p.refine_share, p.oversegment, p.min_compactness
+        );
         for b in 0..args.paths.len() {
             let stages: Vec<String> = m.stages[b].iter().map(|v| format!("{v:.0}")).collect();
             let _ = write!(text, " {:.2} | {} | {:.2} |", m.psnr[b], stages.join(" / "), m.seconds[b]);

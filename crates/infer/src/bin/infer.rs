@@ -193,14 +193,17 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
     }
     let mut folders = Vec::new();
     // (flag, path, extension): each output argument resolved to a destination per input.
-    let mut resolve = |flag: &str, path: &Path, extension: &str, stdout: bool| -> Result<Vec<Option<PathBuf>>, String> {
+    let mut resolve = |flag: &str,
+                       path: &Path,
+                       extension: &str,
+                       stdout: bool|
+     -> Result<Vec<Option<PathBuf>>, String> {
         match place(path, stdout) {
             Place::Stdout if many => Err(format!("{flag} -: several inputs cannot all go to stdout")),
             Place::Stdout => Ok(vec![None]),
-            Place::File(file) if many => Err(format!(
-                "{flag} {}: several inputs need a folder (end the path with /)",
-                file.display()
-            )),
+            Place::File(file) if many => {
+                Err(format!("{flag} {}: several inputs need a folder (end the path with /)", file.display()))
+            }
             Place::File(file) => {
                 // A device or a pipe (`/dev/null`) has no extension to check.
                 let special = std::fs::metadata(&file).is_ok_and(|m| !m.is_file());
@@ -219,7 +222,9 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
                     .iter()
                     .map(|source| {
                         let stem = match source {
-                            Source::File(path) => path.file_stem().map(|s| s.to_os_string()).unwrap_or_default(),
+                            Source::File(path) => {
+                                path.file_stem().map(|s| s.to_os_string()).unwrap_or_default()
+                            }
                             Source::Stdin => "stdin".into(),
                         };
                         Some(folder.join(Path::new(&stem).with_extension(extension)))
@@ -230,14 +235,19 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
     };
     let svg = resolve("-o", &args.output, "svg", true)?;
     let optional = |files: Option<Vec<Option<PathBuf>>>| files.unwrap_or_else(|| vec![None; sources.len()]);
-    let preview = optional(args.preview.as_deref().map(|p| resolve("--preview", p, "png", false)).transpose()?);
-    let compare = optional(args.compare.as_deref().map(|p| resolve("--compare", p, "png", false)).transpose()?);
-    let metrics = optional(args.metrics.as_deref().map(|p| resolve("--metrics", p, "json", false)).transpose()?);
+    let preview =
+        optional(args.preview.as_deref().map(|p| resolve("--preview", p, "png", false)).transpose()?);
+    let compare =
+        optional(args.compare.as_deref().map(|p| resolve("--compare", p, "png", false)).transpose()?);
+    let metrics =
+        optional(args.metrics.as_deref().map(|p| resolve("--metrics", p, "json", false)).transpose()?);
 
     let inputs: Vec<(PathBuf, String)> = sources
         .iter()
         .filter_map(|s| match s {
-            Source::File(path) => Some((std::fs::canonicalize(path).unwrap_or_else(|_| path.clone()), s.name())),
+            Source::File(path) => {
+                Some((std::fs::canonicalize(path).unwrap_or_else(|_| path.clone()), s.name()))
+            }
             Source::Stdin => None,
         })
         .collect();
@@ -311,7 +321,8 @@ fn writable(file: &Path) -> Result<(), String> {
         return Err(fail(format!("the folder {} does not exist", folder.display())));
     }
     let probe = folder.join(format!(".supersvg-probe-{}", std::process::id()));
-    std::fs::File::create(&probe).map_err(|err| fail(format!("cannot write in {}: {err}", folder.display())))?;
+    std::fs::File::create(&probe)
+        .map_err(|err| fail(format!("cannot write in {}: {err}", folder.display())))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
@@ -338,7 +349,9 @@ fn run(args: &Args) -> Result<usize, String> {
     if let Some(regions) = args.regions
         && regions as usize >= paths
     {
-        return Err(format!("--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"));
+        return Err(format!(
+            "--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"
+        ));
     }
     let options = Options { paths, regions: args.regions.map(|r| r as usize), ..Options::default() };
 
@@ -379,8 +392,11 @@ fn process(
     say: &dyn Fn(String),
 ) -> Result<String, String> {
     let started = Instant::now();
-    let load_options =
-        LoadOptions { long_side: args.size, allow_truncated: args.allow_truncated, background: args.background.0 };
+    let load_options = LoadOptions {
+        long_side: args.size,
+        allow_truncated: args.allow_truncated,
+        background: args.background.0,
+    };
     let load = |path: &Path| load_with(path, &load_options);
     let loaded = match &job.source {
         Source::File(path) => load(path).map_err(|err| err.message)?,
@@ -433,7 +449,9 @@ fn process(
         }
         Sink::Stdout => {
             let mut out = std::io::stdout().lock();
-            out.write_all(svg.as_bytes()).and_then(|()| out.flush()).map_err(|err| format!("stdout: {err}"))?;
+            out.write_all(svg.as_bytes())
+                .and_then(|()| out.flush())
+                .map_err(|err| format!("stdout: {err}"))?;
             "stdout".to_string()
         }
     };
@@ -444,7 +462,8 @@ fn process(
         write_png(path, rendering).map_err(|err| format!("{}: {err}", path.display()))?;
     }
     if let (Some(path), Some(rendering)) = (&job.compare, &rendering) {
-        write_png(path, &side_by_side(&loaded.image, rendering)).map_err(|err| format!("{}: {err}", path.display()))?;
+        write_png(path, &side_by_side(&loaded.image, rendering))
+            .map_err(|err| format!("{}: {err}", path.display()))?;
     }
     let export_seconds = export.elapsed().as_secs_f64();
     let mut quality = String::new();

@@ -85,7 +85,8 @@ impl DataSource {
             // Regions as large as the count makes them on the whole scene, cut from a window.
             let scene = window(&whole, self.config.window, &mut rng);
             let share = (scene.width() * scene.height()) as f64 / (whole.width() * whole.height()) as f64;
-            let count = ((count as f64 * share).round() as usize).clamp(1, (scene.width() * scene.height()) as usize);
+            let count =
+                ((count as f64 * share).round() as usize).clamp(1, (scene.width() * scene.height()) as usize);
             let segmentation = segment(&scene, count, &self.config.segment_options())
                 .expect("generated and loaded scenes are valid SLIC inputs");
             let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
