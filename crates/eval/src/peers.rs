@@ -162,11 +162,10 @@ pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorP
     let started = Instant::now();
     let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
     let point = OperatingPoint::default();
-    let segmentation =
+    let (_, drawing) =
         infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)
             .map_err(|err| err.to_string())?;
-    let drawing = infer::fallback::mosaic(image, &segmentation);
-    Ok((drawing, started.elapsed().as_secs_f64()))
+    Ok((drawing.paths(), started.elapsed().as_secs_f64()))
 }
 
 /// The result of `run` with the most shapes not above `target`, over knob values `low..=high`

@@ -6,7 +6,7 @@ use model::{CoarseModel, CropBatch, ModelConfig, crop_to_image};
 use raster::Path;
 use superpixel::RegionCrop;
 
-use crate::fallback::{background, painter_order, region_paths};
+use crate::fallback::FallbackDrawing;
 use crate::scene::{Origin, Placed, Scene, Scope};
 
 /// How many coarse paths the stage may keep.
@@ -19,8 +19,9 @@ pub struct CoarseBudget {
     pub total: usize,
 }
 
-/// Draws `scene` (which must be empty): the background path, then for every region in painter's
-/// order its fallback path and, in E_c's order, each visible E_c path that lowers the squared
+/// Draws `scene` (which must be empty) from `fallback`, the fallback drawing of its
+/// segmentation: the background path, then for every region in painter's order its fallback
+/// path and, in E_c's order, each visible E_c path that lowers the squared
 /// error over the pixels of the regions painted so far (later regions will paint over the
 /// rest), up to the budget. If the kept paths together made the whole image worse than the
 /// fallback drawing alone (a path can reach a later region where its fallback leaves a seam),
@@ -32,22 +33,20 @@ pub fn draw_coarse(
     coarse: &CoarseModel,
     config: &ModelConfig,
     scene: &mut Scene,
+    fallback: FallbackDrawing,
     budget: CoarseBudget,
     batch: usize,
     device: &Device,
 ) {
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
-    let segmentation = scene.segmentation();
-    let order = painter_order(segmentation);
-    let fallbacks = region_paths(segmentation, &order);
+    let FallbackDrawing { order, regions: fallbacks, background } = fallback;
     let proposals = if budget.per_region == 0 {
         vec![Vec::new(); order.len()]
     } else {
         let crops: Vec<RegionCrop> = order.iter().map(|&r| scene.region_crop(config, r)).collect();
         propose(coarse, &crops, scene.target().dimensions(), batch, device)
     };
-    let under = background(scene.target(), &fallbacks.iter().flatten().copied().collect::<Vec<_>>());
-    scene.push(Placed { path: under, region: None, origin: Origin::Background });
+    scene.push(Placed { path: background, region: None, origin: Origin::Background });
     let mut spare = budget.total.saturating_sub(1 + order.len());
     let mut painted = vec![false; order.len()];
     for ((&region, fallback), candidates) in order.iter().zip(fallbacks).zip(proposals) {

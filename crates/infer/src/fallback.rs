@@ -63,17 +63,32 @@ pub fn painter_order(segmentation: &Segmentation) -> Vec<u32> {
     order
 }
 
-/// Every region's fallback path (`None` where a region cannot be fitted), in `order`, fitted in
-/// parallel.
-pub fn region_paths(segmentation: &Segmentation, order: &[u32]) -> Vec<Option<Path>> {
-    order.par_iter().map(|&r| region_path(segmentation, r, GROW)).collect()
+/// The fallback drawing of an image's segmentation: fitted once, then scored (choosing a
+/// segmentation) and drawn (the coarse stage starts from it).
+#[derive(Clone, Debug)]
+pub struct FallbackDrawing {
+    /// The regions in painter's order ([`painter_order`]).
+    pub order: Vec<u32>,
+    /// Each region's path, in `order`; `None` where a region cannot be fitted.
+    pub regions: Vec<Option<Path>>,
+    /// The path under everything ([`background`] of the region paths).
+    pub background: Path,
 }
 
-/// The fallback drawing alone: the background, then every region's path in painter's order.
-pub fn mosaic(image: &Rgb32FImage, segmentation: &Segmentation) -> Vec<Path> {
-    let regions: Vec<Path> =
-        region_paths(segmentation, &painter_order(segmentation)).into_iter().flatten().collect();
-    std::iter::once(background(image, &regions)).chain(regions).collect()
+impl FallbackDrawing {
+    /// Fits every region of `segmentation` (in parallel) and the background of `image` under them.
+    pub fn new(image: &Rgb32FImage, segmentation: &Segmentation) -> Self {
+        let order = painter_order(segmentation);
+        let regions: Vec<Option<Path>> =
+            order.par_iter().map(|&r| region_path(segmentation, r, GROW)).collect();
+        let background = background(image, &regions.iter().flatten().copied().collect::<Vec<_>>());
+        Self { order, regions, background }
+    }
+
+    /// The drawing alone: the background, then every region's path in painter's order.
+    pub fn paths(&self) -> Vec<Path> {
+        std::iter::once(self.background).chain(self.regions.iter().flatten().copied()).collect()
+    }
 }
 
 #[cfg(test)]
@@ -94,7 +109,8 @@ mod tests {
         let exact = Rgb32FImage::from_fn(96, 64, |x, y| {
             Rgb(segmentation.regions[segmentation.label(x, y) as usize].mean_color)
         });
-        let drawn = raster::render_exact(&mosaic(&image, &segmentation), 96, 64, [1.0; 3]);
+        let drawn =
+            raster::render_exact(&FallbackDrawing::new(&image, &segmentation).paths(), 96, 64, [1.0; 3]);
         let drawn = image::DynamicImage::ImageRgb8(drawn).to_rgb32f();
         let (ours, pixels) = (psnr(&drawn, &image), psnr(&exact, &image));
         assert!(ours > pixels - 1.5, "fitted outlines {ours:.2} dB, pixel regions {pixels:.2} dB");

@@ -5,6 +5,7 @@ use burn::tensor::Device;
 use image::{Rgb, Rgb32FImage};
 use infer::coarse::{CoarseBudget, draw_coarse};
 use infer::decode::load;
+use infer::fallback::FallbackDrawing;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::psnr;
 use infer::models::{Models, bundled};
@@ -35,15 +36,17 @@ fn no_stage_lowers_the_psnr() {
             segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
         let score = |scene: &Scene| psnr(&scene.canvas_image(), &image);
 
+        let drawing = FallbackDrawing::new(&image, &segmentation);
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
         let no_coarse = CoarseBudget { per_region: 0, total: 45 };
-        draw_coarse(&models.coarse, &models.config, &mut fallback, no_coarse, 16, &device);
+        draw_coarse(&models.coarse, &models.config, &mut fallback, drawing.clone(), no_coarse, 16, &device);
 
         let mut scene = Scene::new(image.clone(), segmentation);
         draw_coarse(
             &models.coarse,
             &models.config,
             &mut scene,
+            drawing,
             CoarseBudget { per_region: 2, total: 45 },
             16,
             &device,
