@@ -82,6 +82,19 @@ pub struct RegionCrop {
     pub transform: CropTransform,
 }
 
+impl RegionCrop {
+    /// The mean colour of the cells inside the mask (0 for an empty mask): the flat fill a
+    /// drawing of the region must beat.
+    pub fn mean_colour(&self) -> [f32; 3] {
+        let cells = self.size * self.size;
+        let area: f32 = self.mask.iter().sum::<f32>().max(1.0);
+        std::array::from_fn(|c| {
+            self.mask.iter().zip(&self.pixels[c * cells..(c + 1) * cells]).map(|(m, p)| m * p).sum::<f32>()
+                / area
+        })
+    }
+}
+
 impl Segmentation {
     /// Cuts region `region` out of `image` (the image this segmentation was computed on).
     ///

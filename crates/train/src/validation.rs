@@ -129,7 +129,7 @@ impl Validation {
 
     /// Each crop's mean colour inside its mask.
     pub fn mean_colours(&self) -> Vec<[f32; 3]> {
-        self.crops.iter().map(mean_colour).collect()
+        self.crops.iter().map(RegionCrop::mean_colour).collect()
     }
 
     /// Scores `scenes` (one per crop, paths in the crop's unit square with their opacity).
@@ -142,7 +142,7 @@ impl Validation {
         let (mut outside, mut covered, mut visible, mut helped) = (0.0f64, 0.0f64, 0usize, 0usize);
         for (crop, scene) in self.crops.iter().zip(scenes) {
             let size = crop.size as u32;
-            let color = mean_colour(crop);
+            let color = crop.mean_colour();
             let mut canvas = Pixmap::new(size, size).expect("a non-empty crop");
             let [r, g, b] = color.map(|c| c.clamp(0.0, 1.0));
             canvas.fill(Color::from_rgba(r, g, b, 1.0).expect("a clamped colour"));
@@ -193,15 +193,6 @@ impl Validation {
             kept: helped as f64 / crops,
         }
     }
-}
-
-/// The mean colour of a crop inside its mask.
-fn mean_colour(crop: &RegionCrop) -> [f32; 3] {
-    let cells = crop.size * crop.size;
-    let area: f32 = crop.mask.iter().sum::<f32>().max(1.0);
-    std::array::from_fn(|c| {
-        crop.mask.iter().zip(&crop.pixels[c * cells..(c + 1) * cells]).map(|(m, p)| m * p).sum::<f32>() / area
-    })
 }
 
 /// Sum of squared differences inside the crop's mask between the canvas and the crop.

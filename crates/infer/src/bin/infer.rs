@@ -16,7 +16,7 @@ use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
 use infer::pipeline::{MAX_PATHS, MIN_REGION_PIXELS, Options, max_regions, vectorize};
-use infer::write::{write_atomic, write_png};
+use infer::write::{folder_of, write_atomic, write_png};
 use raster::{Backend, MAX_DECIMALS, SvgOptions, render_exact, to_svg_with};
 
 /// Vectorize images into SVG with SuperSVG.
@@ -245,9 +245,7 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
     let inputs: Vec<(PathBuf, String)> = sources
         .iter()
         .filter_map(|s| match s {
-            Source::File(path) => {
-                Some((std::fs::canonicalize(path).unwrap_or_else(|_| path.clone()), s.name()))
-            }
+            Source::File(path) => Some((absolute(path), s.name())),
             Source::Stdin => None,
         })
         .collect();
@@ -301,7 +299,7 @@ fn absolute(path: &Path) -> PathBuf {
     if let Ok(resolved) = std::fs::canonicalize(path) {
         return resolved;
     }
-    let folder = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let folder = folder_of(path);
     let folder = std::fs::canonicalize(folder).unwrap_or_else(|_| folder.to_path_buf());
     folder.join(path.file_name().unwrap_or_default())
 }
@@ -316,7 +314,7 @@ fn writable(file: &Path) -> Result<(), String> {
     if std::fs::metadata(file).is_ok_and(|m| !m.is_file()) {
         return Ok(()); // a device or a pipe: written in place, its errors reported then
     }
-    let folder = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let folder = folder_of(file);
     if !folder.is_dir() {
         return Err(fail(format!("the folder {} does not exist", folder.display())));
     }
