@@ -6,7 +6,7 @@ use image::{Rgb, Rgb32FImage};
 use infer::coarse::{CoarseBudget, draw_coarse};
 use infer::decode::load;
 use infer::fallback::FallbackDrawing;
-use infer::finetune::{Budget, FinetuneOptions, finetune};
+use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
 use infer::metrics::psnr;
 use infer::models::{Models, bundled};
 use infer::refine::draw_refinement;
@@ -72,4 +72,32 @@ fn no_stage_lowers_the_psnr() {
         assert!(after_finetune >= after_refine, "fine-tuning {after_finetune} < refinement {after_refine}");
         assert_eq!(scene.paths().iter().filter(|p| p.origin == Origin::Refine).count(), refined);
     }
+}
+
+#[test]
+fn fine_tuning_reports_the_psnr_it_reaches() {
+    let device = Device::flex();
+    let image = images().remove(1);
+    let segmentation = segment(&image, 12, &SegmentOptions::default()).unwrap();
+    let regions = segmentation.regions.len();
+    let mut scene = Scene::new(image.clone(), segmentation.clone());
+    let models = Models::load(&bundled("coarse.ckpt").unwrap(), None, &device).unwrap();
+    let drawing = FallbackDrawing::new(&image, &segmentation);
+    let no_coarse = CoarseBudget { per_region: 0, total: regions + 1 };
+    draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);
+    let before = psnr(&scene.canvas_image(), &image);
+
+    let mut reports: Vec<Progress> = Vec::new();
+    let options = FinetuneOptions { budget: Budget::StepsPerRegion(20), ..FinetuneOptions::default() };
+    let steps =
+        finetune_with_progress(&mut scene, &options, &device.clone().autodiff(), &mut |p| reports.push(*p));
+    let after = psnr(&scene.canvas_image(), &image);
+    let last = reports.last().expect("at least one turn was reported");
+    assert_eq!(last.steps, steps);
+    assert_eq!(last.total_steps, Some(20 * regions));
+    assert!(reports.windows(2).all(|w| w[0].steps <= w[1].steps && w[0].seconds <= w[1].seconds));
+    let running = reports[reports.len() - 2];
+    assert!((running.psnr - after).abs() < 0.3, "running {:.3} dB, drew {after:.3} dB", running.psnr);
+    assert!((last.psnr - after).abs() < 0.01, "reported {:.3} dB, drew {after:.3} dB", last.psnr);
+    assert!(after > before, "fine-tuning {after:.2} dB did not improve on {before:.2} dB");
 }

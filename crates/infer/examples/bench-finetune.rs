@@ -1,0 +1,81 @@
+//! Throughput and payoff of SuperSVG-F on one image: the bundled models draw it (SuperSVG-B),
+//! then fine-tuning runs from that same drawing for 2, 5 and 10 seconds.
+//!
+//! `cargo run --release -p infer --example bench-finetune -- IMAGE [--paths 500] [--size 512]
+//!  [--lr X] [--steps-per-turn N]`
+//!
+//! Prints one line per budget, then, last, one JSON line: `steps_per_s` and `ms_per_step` (of
+//! the 10 s run; a step is one Adam step of one region), `psnr_b` and `psnr_after` (seconds →
+//! PSNR of the exact rendering).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use burn::tensor::Device;
+use clap::Parser;
+use infer::decode::load;
+use infer::finetune::{Budget, FinetuneOptions, finetune};
+use infer::metrics::psnr;
+use infer::models::{Models, bundled};
+use infer::pipeline::{Options, vectorize};
+
+/// Time SuperSVG-F on one image.
+#[derive(Parser, Debug)]
+struct Args {
+    /// The image.
+    image: PathBuf,
+    /// Path budget of the SuperSVG-B drawing it starts from.
+    #[arg(long, default_value_t = 500)]
+    paths: usize,
+    /// Long side of the working resolution.
+    #[arg(long, default_value_t = 512)]
+    size: u32,
+    /// Adam learning rate (default: [`FinetuneOptions::default`]'s).
+    #[arg(long)]
+    lr: Option<f64>,
+    /// Adam steps a region takes per turn (default: [`FinetuneOptions::default`]'s).
+    #[arg(long)]
+    steps_per_turn: Option<usize>,
+}
+
+/// The fine-tuning budgets measured, in seconds.
+const SECONDS: [f64; 3] = [2.0, 5.0, 10.0];
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = Args::parse();
+    let device = Device::flex();
+    let image = load(&args.image, args.size)?.image;
+    let models = Models::load(&bundled("coarse.ckpt")?, Some(&bundled("refine.ckpt")?), &device)?;
+    let drawn = vectorize(&models, &image, &Options { paths: args.paths, ..Options::default() }, &device)?;
+    let psnr_b = psnr(&drawn.scene.canvas_image(), &image);
+    println!("SuperSVG-B: {} paths, {psnr_b:.2} dB", drawn.scene.len());
+    let mut after = serde_json::Map::new();
+    let mut rate = (0.0, 0.0);
+    for seconds in SECONDS {
+        let mut scene = drawn.scene.clone();
+        let defaults = FinetuneOptions::default();
+        let options = FinetuneOptions {
+            budget: Budget::Seconds(seconds),
+            lr: args.lr.unwrap_or(defaults.lr),
+            steps_per_turn: args.steps_per_turn.unwrap_or(defaults.steps_per_turn),
+            ..defaults
+        };
+        let started = Instant::now();
+        let steps = finetune(&mut scene, &options, &device.clone().autodiff());
+        let spent = started.elapsed().as_secs_f64();
+        let tuned = psnr(&scene.canvas_image(), &image);
+        println!("{seconds} s: {steps} steps in {spent:.2} s, {tuned:.2} dB ({:+.2})", tuned - psnr_b);
+        after.insert(format!("{seconds}"), tuned.into());
+        rate = (steps as f64 / spent, 1000.0 * spent / steps.max(1) as f64);
+    }
+    let line = serde_json::json!({
+        "image": args.image.display().to_string(),
+        "paths": args.paths,
+        "steps_per_s": rate.0,
+        "ms_per_step": rate.1,
+        "psnr_b": psnr_b,
+        "psnr_after": after,
+    });
+    println!("{line}");
+    Ok(())
+}
