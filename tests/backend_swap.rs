@@ -80,7 +80,7 @@ fn training_steps_agree_across_backends() {
     let coarse = CoarseModel::new(&model_config, &flex);
     let refine = RefineModel::new(&model_config, &flex);
     let source = DataSource::new(&coarse_config.data, &model_config, 2, 3).unwrap();
-    let batch = source.batch(0);
+    let batch = source.batch(0).unwrap();
 
     let run = |backend: Backend| {
         let device = backend.autodiff_device().unwrap_or_else(|err| panic!("{err}"));

@@ -5,23 +5,33 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use burn::tensor::Device;
-use infer::models::{Models, bundled};
+use infer::models::{Models, ModelsError, bundled};
 
 /// Prints a failed run's error and gives the exit code: 0 on success, 1 on error.
-pub fn finish(result: Result<(), String>) -> ExitCode {
+pub fn finish(result: anyhow::Result<()>) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err}");
+            eprintln!("error: {err:#}");
             ExitCode::FAILURE
         }
     }
 }
 
+/// A folder of images that could not be listed.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {source}", dir.display())]
+pub struct ListError {
+    /// The folder.
+    pub dir: PathBuf,
+    /// Why.
+    pub source: std::io::Error,
+}
+
 /// The files directly in `dir`, sorted (whether they are images is for the decoder to say).
-pub fn files_in(dir: &Path) -> Result<Vec<PathBuf>, String> {
+pub fn files_in(dir: &Path) -> Result<Vec<PathBuf>, ListError> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|err| format!("{}: {err}", dir.display()))?
+        .map_err(|source| ListError { dir: dir.to_path_buf(), source })?
         .filter_map(|entry| entry.ok().map(|e| e.path()))
         .filter(|path| path.is_file())
         .collect();
@@ -34,9 +44,9 @@ pub fn load_models(
     coarse: Option<&Path>,
     refine: Option<&Path>,
     device: &Device,
-) -> Result<(Models, PathBuf, PathBuf), String> {
+) -> Result<(Models, PathBuf, PathBuf), ModelsError> {
     let coarse = coarse.map_or_else(|| bundled("coarse.ckpt"), |p| Ok(p.to_path_buf()))?;
     let refine = refine.map_or_else(|| bundled("refine.ckpt"), |p| Ok(p.to_path_buf()))?;
-    let models = Models::load(&coarse, Some(&refine), device).map_err(|err| err.to_string())?;
+    let models = Models::load(&coarse, Some(&refine), device)?;
     Ok((models, coarse, refine))
 }

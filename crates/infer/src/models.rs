@@ -47,18 +47,42 @@ impl Models {
 /// Environment variable naming a folder with `coarse.ckpt` and `refine.ckpt`.
 pub const MODELS_ENV: &str = "SUPERSVG_MODELS";
 
+/// Why the models could not be found or loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelsError {
+    /// `$SUPERSVG_MODELS` is set but the folder has no such file.
+    #[error("{MODELS_ENV}={} has no {name}", dir.display())]
+    NotInEnv {
+        /// The folder the variable names.
+        dir: PathBuf,
+        /// The file looked for.
+        name: String,
+    },
+    /// No bundled checkpoint in any of the places looked in.
+    #[error(
+        "no bundled {name} (looked in {}); pass it explicitly or set {MODELS_ENV} to its folder",
+        looked.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+    )]
+    NotFound {
+        /// The file looked for.
+        name: String,
+        /// The folders looked in.
+        looked: Vec<PathBuf>,
+    },
+    /// A checkpoint was found but could not be loaded.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+}
+
 /// The bundled checkpoint `name` (`coarse.ckpt` or `refine.ckpt`): in `$SUPERSVG_MODELS` when
 /// it is set (and nowhere else: a mistyped folder is an error, not a silent fallback), else in
 /// a `models/` folder next to the executable or up to three levels above it (a cargo build
 /// inside the repository), or in the source tree this program was built from.
-pub fn bundled(name: &str) -> Result<PathBuf, String> {
+pub fn bundled(name: &str) -> Result<PathBuf, ModelsError> {
     if let Some(dir) = std::env::var_os(MODELS_ENV) {
-        let path = PathBuf::from(&dir).join(name);
-        return if path.is_file() {
-            Ok(path)
-        } else {
-            Err(format!("{MODELS_ENV}={} has no {name}", PathBuf::from(dir).display()))
-        };
+        let dir = PathBuf::from(dir);
+        let path = dir.join(name);
+        return if path.is_file() { Ok(path) } else { Err(ModelsError::NotInEnv { dir, name: name.into() }) };
     }
     let mut places: Vec<PathBuf> = Vec::new();
     if let Ok(exe) = std::env::current_exe() {
@@ -66,11 +90,8 @@ pub fn bundled(name: &str) -> Result<PathBuf, String> {
     }
     places.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models"));
     let found = places.iter().map(|dir| dir.join(name)).find(|path| path.is_file());
-    found.map(|path| std::fs::canonicalize(&path).unwrap_or(path)).ok_or_else(|| {
-        let looked: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
-        format!(
-            "no bundled {name} (looked in {}); pass it explicitly or set {MODELS_ENV} to its folder",
-            looked.join(", ")
-        )
-    })
+    match found {
+        Some(path) => Ok(std::fs::canonicalize(&path).unwrap_or(path)),
+        None => Err(ModelsError::NotFound { name: name.into(), looked: places }),
+    }
 }

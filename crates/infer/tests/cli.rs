@@ -458,3 +458,34 @@ fn transparent_pixels_take_the_background_colour() {
     assert_eq!(bad.status.code(), Some(2));
     assert!(text(&bad.stderr).contains("#rrggbb"));
 }
+
+#[test]
+fn auto_budget_gives_flat_art_few_paths_and_refuses_a_region_count() {
+    let fixture = Fixture::new("auto");
+    let flat = RgbImage::from_fn(80, 60, |x, _| if x < 40 { Rgb([200, 30, 30]) } else { Rgb([20, 40, 220]) });
+    flat.save(fixture.path("flat.png")).unwrap();
+    let (flat_in, out) = (fixture.path("flat.png"), fixture.path("flat.svg"));
+    let result = fixture.infer(&[flat_in.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "auto"]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let drawn = std::fs::read_to_string(&out).unwrap().matches("<path").count();
+    assert!((2..=8).contains(&drawn), "two flat halves drawn with {drawn} paths: {}", text(&result.stderr));
+
+    let refused = fixture.infer(&[
+        flat_in.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--paths",
+        "auto",
+        "--regions",
+        "5",
+    ]);
+    assert_eq!(refused.status.code(), Some(1));
+    assert!(
+        text(&refused.stderr).contains("--regions needs a number of --paths"),
+        "{}",
+        text(&refused.stderr)
+    );
+    let bogus = fixture.infer(&[flat_in.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "many"]);
+    assert_eq!(bogus.status.code(), Some(2));
+    assert!(text(&bogus.stderr).contains("not a path budget"), "{}", text(&bogus.stderr));
+}

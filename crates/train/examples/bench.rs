@@ -61,7 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut totals = Vec::new();
     for step in 0..args.warmup + args.steps {
         let started = Instant::now();
-        let batch = loader.next_batch();
+        let batch = loader.next_batch()?;
         let data = started.elapsed().as_secs_f64();
         let output = objective.step(&model, &batch.tensors(&device), step);
         let backward_started = Instant::now();

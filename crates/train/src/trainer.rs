@@ -214,7 +214,7 @@ pub fn train<O: Objective>(
             return Err(TrainError::Interrupted { step, checkpoint });
         }
         let started = Instant::now();
-        let batch = loader.next_batch();
+        let batch = loader.next_batch()?;
         let data_seconds = started.elapsed().as_secs_f64();
         let output = objective.step(&model, &batch.tensors(&run.device), step);
 

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use anyhow::{Context, bail};
 use clap::Parser;
 use eval::cli::{files_in, finish, load_models};
 use eval::lpips::Lpips;
@@ -93,30 +94,28 @@ fn main() -> ExitCode {
     finish(run(Args::parse()))
 }
 
-fn run(args: Args) -> Result<(), String> {
+fn run(args: Args) -> anyhow::Result<()> {
     if let Some(bad) = args.peers.iter().find(|p| !p.is_empty() && !PEERS.contains(&p.as_str())) {
-        return Err(format!("--peers: unknown peer `{bad}` (known: {})", PEERS.join(", ")));
+        bail!("--peers: unknown peer `{bad}` (known: {})", PEERS.join(", "));
     }
     if let Some(bad) = args.paths.iter().find(|&&p| !(2..=MAX_PATHS).contains(&p)) {
-        return Err(format!(
-            "--paths: {bad} is out of range (2, the background and one region, to {MAX_PATHS})"
-        ));
+        bail!("--paths: {bad} is out of range (2, the background and one region, to {MAX_PATHS})");
     }
     if !(16..=8192).contains(&args.size) {
-        return Err(format!("--size: {} is out of range (16 to 8192 pixels)", args.size));
+        bail!("--size: {} is out of range (16 to 8192 pixels)", args.size);
     }
     if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
-        return Err(format!("--finetune-secs: {seconds} is not a number of seconds"));
+        bail!("--finetune-secs: {seconds} is not a number of seconds");
     }
     let mut images = files_in(&args.dir)?;
     images.truncate(args.limit.unwrap_or(usize::MAX));
     if images.is_empty() {
-        return Err(format!("{}: no images", args.dir.display()));
+        bail!("{}: no images", args.dir.display());
     }
-    let device = args.backend.device().map_err(|err| err.to_string())?;
+    let device = args.backend.device()?;
     let (models, _, _) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let scratch = std::env::temp_dir().join(format!("supersvg-eval-{}", std::process::id()));
-    std::fs::create_dir_all(&scratch).map_err(|err| err.to_string())?;
+    std::fs::create_dir_all(&scratch)?;
 
     let wanted = |peer: &str| args.peers.iter().any(|p| p == peer);
     let use_vtracer = wanted("vtracer") && available("vtracer");
@@ -151,7 +150,7 @@ fn run(args: Args) -> Result<(), String> {
         let image = &loaded.image;
         let (width, height) = image.dimensions();
         let png = scratch.join("input.png");
-        write_png(&png, &to_rgb8(image)).map_err(|err| err.to_string())?;
+        write_png(&png, &to_rgb8(image))?;
         let mut tiles = vec![("input".to_string(), image.clone())];
         let mut record = |budget: usize,
                           method: &str,
@@ -190,7 +189,7 @@ fn run(args: Args) -> Result<(), String> {
         for &budget in &args.paths {
             let started = Instant::now();
             let options = Options { paths: budget, ..Options::default() };
-            let mut result = vectorize(&models, image, &options, &device).map_err(|e| e.to_string())?;
+            let mut result = vectorize(&models, image, &options, &device)?;
             let seconds = started.elapsed().as_secs_f64();
             let parts = Some(anatomy(&result.scene));
             record(budget, "SuperSVG-B (ours)", drawing(&result.scene), seconds, parts, &mut tiles);
@@ -241,16 +240,16 @@ fn run(args: Args) -> Result<(), String> {
     }
     let _ = std::fs::remove_dir_all(&scratch);
     if evaluated == 0 {
-        return Err(format!("{}: no readable images", args.dir.display()));
+        bail!("{}: no readable images", args.dir.display());
     }
 
     let sheet_path = args.out.with_extension("png");
     write_png(&sheet_path, &contact_sheet(&sheet_rows, 160))
-        .map_err(|err| format!("{}: {err}", sheet_path.display()))?;
+        .with_context(|| sheet_path.display().to_string())?;
     let columns: Vec<String> =
         sheet_rows.first().map(|row| row.iter().map(|(name, _)| name.clone()).collect()).unwrap_or_default();
     let report = report(&args, evaluated, &results, &notes, (&sheet_path, &columns));
-    write_atomic(&args.out, report.as_bytes()).map_err(|err| format!("{}: {err}", args.out.display()))?;
+    write_atomic(&args.out, report.as_bytes()).with_context(|| args.out.display().to_string())?;
     eprintln!("wrote {} and {}", args.out.display(), sheet_path.display());
     Ok(())
 }

@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+use anyhow::{Context, anyhow, bail};
 use clap::Parser;
 use eval::cli::{files_in, finish, load_models};
 use infer::decode::load;
@@ -75,8 +76,8 @@ fn main() -> ExitCode {
     finish(run(Args::parse()))
 }
 
-fn run(args: Args) -> Result<(), String> {
-    let device = args.backend.device().map_err(|err| err.to_string())?;
+fn run(args: Args) -> anyhow::Result<()> {
+    let device = args.backend.device()?;
     let (models, coarse, refine) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let mut points = Vec::new();
     for &coarse_paths in &args.coarse_paths {
@@ -84,7 +85,7 @@ fn run(args: Args) -> Result<(), String> {
             for &oversegment in &args.oversegment {
                 for &min_compactness in &args.min_compactness {
                     let point = OperatingPoint { coarse_paths, refine_share, oversegment, min_compactness };
-                    point.validate().map_err(|err| format!("grid point {point:?}: {err}"))?;
+                    point.validate().map_err(|err| anyhow!("grid point {point:?}: {err}"))?;
                     points.push(point);
                 }
             }
@@ -93,7 +94,7 @@ fn run(args: Args) -> Result<(), String> {
     let images: Vec<_> =
         files_in(&args.dir)?.iter().filter_map(|path| load(path, args.size).ok().map(|l| l.image)).collect();
     if images.is_empty() {
-        return Err(format!("{}: no readable images", args.dir.display()));
+        bail!("{}: no readable images", args.dir.display());
     }
 
     let mut measured = Vec::new();
@@ -109,7 +110,7 @@ fn run(args: Args) -> Result<(), String> {
             for image in &images {
                 let started = Instant::now();
                 let options = Options { paths, operating_point: Some(point), ..Options::default() };
-                let drawn = vectorize(&models, image, &options, &device).map_err(|err| err.to_string())?;
+                let drawn = vectorize(&models, image, &options, &device)?;
                 result.seconds[b] += started.elapsed().as_secs_f64() / images.len() as f64;
                 result.psnr[b] += psnr(&drawn.scene.canvas_image(), image) / images.len() as f64;
                 for (origin, count) in drawn.scene.counts() {
@@ -157,13 +158,13 @@ fn run(args: Args) -> Result<(), String> {
         let marker = if std::ptr::eq(m, best) { " **best**" } else { "" };
         let _ = writeln!(text, " {:.2}{marker} |", mean(m));
     }
-    write_atomic(&args.out, text.as_bytes()).map_err(|err| format!("{}: {err}", args.out.display()))?;
+    write_atomic(&args.out, text.as_bytes()).with_context(|| args.out.display().to_string())?;
     eprintln!("best: {:?} ({:.2} dB); wrote {}", best.point, mean(best), args.out.display());
 
     if let Some(path) = &args.write {
-        let checkpoint = Checkpoint::load(path).map_err(|err| err.to_string())?;
+        let checkpoint = Checkpoint::load(path)?;
         let tuned = Checkpoint { inference: Some(best.point), ..checkpoint };
-        tuned.save(path).map_err(|err| err.to_string())?;
+        tuned.save(path)?;
         eprintln!("stored the best point in {}", path.display());
     }
     Ok(())

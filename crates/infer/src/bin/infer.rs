@@ -8,14 +8,17 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use anyhow::{Context, anyhow, bail};
 use clap::Parser;
 use image::{Rgb32FImage, RgbImage};
 use indicatif::ProgressBar;
 use infer::decode::{LoadOptions, load_with};
-use infer::finetune::{Budget, FinetuneOptions, finetune};
+use infer::finetune::{Budget, FinetuneOptions, Progress, finetune_with_progress};
 use infer::metrics::{mse, psnr, ssim};
 use infer::models::{Models, bundled};
-use infer::pipeline::{MAX_PATHS, MIN_REGION_PIXELS, Options, max_regions, vectorize};
+use infer::pipeline::{
+    AutoBudget, MAX_PATHS, MIN_REGION_PIXELS, Options, auto_budget, max_regions, operating_point, vectorize,
+};
 use infer::write::{folder_of, write_atomic, write_png};
 use raster::{Backend, MAX_DECIMALS, SvgOptions, render_exact, to_svg_with};
 
@@ -35,9 +38,11 @@ struct Args {
     /// The SVG: a `.svg` file for one input, a folder (`out/`) for any number, or `-` (stdout).
     #[arg(short, long)]
     output: PathBuf,
-    /// The most paths in the result; fewer only when no further path lowers the error.
-    #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(2..=MAX_PATHS as u64))]
-    paths: u64,
+    /// The most paths in the result (2 to 20000; fewer only when no further path lowers the
+    /// error), or `auto`: per image, double from 8 paths until the drawing reaches 30 dB PSNR or
+    /// a doubling gains less than 0.5 dB, at most 2000 (flat art gets few paths, photos many).
+    #[arg(long, default_value = "500", value_parser = path_budget)]
+    paths: PathBudget,
     /// Coarse-model checkpoint (default: the bundled one).
     #[arg(long)]
     coarse: Option<PathBuf>,
@@ -90,6 +95,37 @@ struct Args {
 /// The largest `--size`: a working image of 8192² is already 64 Mpx of f32 canvases.
 const MAX_SIZE: u32 = 8192;
 
+/// A bar for SuperSVG-F on stderr: time or steps, with the running PSNR.
+fn finetune_bar(budget: Budget) -> ProgressBar {
+    let (length, unit) = match budget {
+        Budget::Seconds(seconds) => ((seconds * 1000.0) as u64, "ms"),
+        Budget::StepsPerRegion(_) => (0, "steps"),
+    };
+    let bar = ProgressBar::new(length);
+    let template = format!("fine-tuning {{bar:30}} {{pos}}/{{len}} {unit}, {{msg}}");
+    if let Ok(style) = indicatif::ProgressStyle::with_template(&template) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+/// What `--paths` asks for.
+#[derive(Clone, Copy, Debug)]
+enum PathBudget {
+    /// This many paths at most.
+    Count(usize),
+    /// A budget per image by [`auto_budget`].
+    Auto,
+}
+
+fn path_budget(text: &str) -> Result<PathBudget, String> {
+    match text.parse::<usize>() {
+        _ if text == "auto" => Ok(PathBudget::Auto),
+        Ok(paths) if (2..=MAX_PATHS).contains(&paths) => Ok(PathBudget::Count(paths)),
+        _ => Err(format!("{text:?} is not a path budget: a number from 2 to {MAX_PATHS}, or auto")),
+    }
+}
+
 /// An RGB colour in [0, 1].
 #[derive(Clone, Copy, Debug)]
 struct Colour([f32; 3]);
@@ -123,7 +159,7 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
         Err(err) => {
-            eprintln!("error: {err}");
+            eprintln!("error: {err:#}");
             ExitCode::FAILURE
         }
     }
@@ -181,7 +217,7 @@ fn place(path: &Path, stdout_allowed: bool) -> Place {
 
 /// Every input with its outputs, or the first reason the command cannot run as asked. Creates
 /// the output folders (only once every check passed).
-fn plan(args: &Args) -> Result<Vec<Job>, String> {
+fn plan(args: &Args) -> anyhow::Result<Vec<Job>> {
     let many = args.inputs.len() > 1;
     let sources: Vec<Source> = args
         .inputs
@@ -189,7 +225,7 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
         .map(|path| if path.as_os_str() == "-" { Source::Stdin } else { Source::File(path.clone()) })
         .collect();
     if sources.iter().filter(|s| matches!(s, Source::Stdin)).count() > 1 {
-        return Err("stdin (-) can be read only once".into());
+        bail!("stdin (-) can be read only once");
     }
     let mut folders = Vec::new();
     // (flag, path, extension): each output argument resolved to a destination per input.
@@ -197,25 +233,25 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
                        path: &Path,
                        extension: &str,
                        stdout: bool|
-     -> Result<Vec<Option<PathBuf>>, String> {
+     -> anyhow::Result<Vec<Option<PathBuf>>> {
         match place(path, stdout) {
-            Place::Stdout if many => Err(format!("{flag} -: several inputs cannot all go to stdout")),
+            Place::Stdout if many => Err(anyhow!("{flag} -: several inputs cannot all go to stdout")),
             Place::Stdout => Ok(vec![None]),
             Place::File(file) if many => {
-                Err(format!("{flag} {}: several inputs need a folder (end the path with /)", file.display()))
+                Err(anyhow!("{flag} {}: several inputs need a folder (end the path with /)", file.display()))
             }
             Place::File(file) => {
                 // A device or a pipe (`/dev/null`) has no extension to check.
                 let special = std::fs::metadata(&file).is_ok_and(|m| !m.is_file());
                 let ok = special || file.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension));
                 if !ok {
-                    return Err(format!("{flag} {}: the file name must end in .{extension}", file.display()));
+                    return Err(anyhow!("{flag} {}: the file name must end in .{extension}", file.display()));
                 }
                 Ok(vec![Some(file)])
             }
             Place::Folder(folder) => {
                 if folder.exists() && !folder.is_dir() {
-                    return Err(format!("{flag} {}: not a folder", folder.display()));
+                    return Err(anyhow!("{flag} {}: not a folder", folder.display()));
                 }
                 folders.push(folder.clone());
                 Ok(sources
@@ -263,10 +299,10 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
         for file in files.into_iter().flatten() {
             let absolute = absolute(file);
             if let Some((_, input)) = inputs.iter().find(|(path, _)| *path == absolute) {
-                return Err(format!("{}: is the input {input}; refusing to overwrite it", file.display()));
+                return Err(anyhow!("{}: is the input {input}; refusing to overwrite it", file.display()));
             }
             if let Some((_, other)) = taken.iter().find(|(path, _)| *path == absolute) {
-                return Err(format!(
+                return Err(anyhow!(
                     "{}: both {other} and {} would be written there; rename one input or use separate runs",
                     file.display(),
                     source.name()
@@ -277,7 +313,7 @@ fn plan(args: &Args) -> Result<Vec<Job>, String> {
         jobs.push(job);
     }
     for folder in &folders {
-        std::fs::create_dir_all(folder).map_err(|err| format!("{}: {err}", folder.display()))?;
+        std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
     }
     for (file, _) in &taken {
         writable(file)?;
@@ -306,29 +342,29 @@ fn absolute(path: &Path) -> PathBuf {
 
 /// Whether `file` can be written: it is not a folder, and its folder exists and takes a new
 /// file (what the atomic write needs), unless it is a device or a pipe.
-fn writable(file: &Path) -> Result<(), String> {
+fn writable(file: &Path) -> anyhow::Result<()> {
     let fail = |message: String| format!("{}: {message}", file.display());
     if file.is_dir() {
-        return Err(fail("is a folder".into()));
+        return Err(anyhow!(fail("is a folder".into())));
     }
     if std::fs::metadata(file).is_ok_and(|m| !m.is_file()) {
         return Ok(()); // a device or a pipe: written in place, its errors reported then
     }
     let folder = folder_of(file);
     if !folder.is_dir() {
-        return Err(fail(format!("the folder {} does not exist", folder.display())));
+        return Err(anyhow!(fail(format!("the folder {} does not exist", folder.display()))));
     }
     let probe = folder.join(format!(".supersvg-probe-{}", std::process::id()));
     std::fs::File::create(&probe)
-        .map_err(|err| fail(format!("cannot write in {}: {err}", folder.display())))?;
+        .map_err(|err| anyhow!(fail(format!("cannot write in {}: {err}", folder.display()))))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
 
 /// Loads the models, then vectorizes every input; returns how many inputs failed.
-fn run(args: &Args) -> Result<usize, String> {
+fn run(args: &Args) -> anyhow::Result<usize> {
     let jobs = plan(args)?;
-    let device = args.backend.device().map_err(|err| err.to_string())?;
+    let device = args.backend.device()?;
     let coarse = match &args.coarse {
         Some(path) => path.clone(),
         None => bundled("coarse.ckpt")?,
@@ -338,19 +374,19 @@ fn run(args: &Args) -> Result<usize, String> {
         (Some(path), false) => Some(path.clone()),
         (None, false) => Some(bundled("refine.ckpt")?),
     };
-    let models = Models::load(&coarse, refine.as_deref(), &device).map_err(|err| err.to_string())?;
+    let models = Models::load(&coarse, refine.as_deref(), &device)?;
     if !args.quiet {
         let refine = refine.as_ref().map_or("none".to_string(), |p| p.display().to_string());
         eprintln!("models: coarse {}, refine {refine}", coarse.display());
     }
-    let paths = args.paths as usize;
-    if let Some(regions) = args.regions
-        && regions as usize >= paths
-    {
-        return Err(format!(
+    let paths = match (args.paths, args.regions) {
+        (PathBudget::Auto, Some(_)) => bail!("--regions needs a number of --paths, not auto"),
+        (PathBudget::Count(paths), Some(regions)) if regions as usize >= paths => bail!(
             "--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"
-        ));
-    }
+        ),
+        (PathBudget::Count(paths), _) => paths,
+        (PathBudget::Auto, None) => 0, // chosen per image
+    };
     let options = Options { paths, regions: args.regions.map(|r| r as usize), ..Options::default() };
 
     let bar = (jobs.len() > 1 && !args.quiet && std::io::stderr().is_terminal())
@@ -365,7 +401,7 @@ fn run(args: &Args) -> Result<usize, String> {
             Ok(line) if !args.quiet => say(line),
             Ok(_) => {}
             Err(message) => {
-                say(format!("error: {}: {message}", job.source.name()));
+                say(format!("error: {}: {message:#}", job.source.name()));
                 failed += 1;
             }
         }
@@ -388,7 +424,7 @@ fn process(
     args: &Args,
     device: &burn::tensor::Device,
     say: &dyn Fn(String),
-) -> Result<String, String> {
+) -> anyhow::Result<String> {
     let started = Instant::now();
     let load_options = LoadOptions {
         long_side: args.size,
@@ -397,14 +433,14 @@ fn process(
     };
     let load = |path: &Path| load_with(path, &load_options);
     let loaded = match &job.source {
-        Source::File(path) => load(path).map_err(|err| err.message)?,
+        Source::File(path) => load(path).map_err(|err| anyhow!(err.message))?,
         Source::Stdin => {
             // The decoder wants a file (it reads the header, then streams large PNGs).
             let mut bytes = Vec::new();
-            std::io::stdin().read_to_end(&mut bytes).map_err(|err| format!("reading stdin: {err}"))?;
+            std::io::stdin().read_to_end(&mut bytes).context("reading stdin")?;
             let spool = std::env::temp_dir().join(format!("supersvg-stdin-{}", std::process::id()));
-            std::fs::write(&spool, &bytes).map_err(|err| format!("{}: {err}", spool.display()))?;
-            let loaded = load(&spool).map_err(|err| err.message);
+            std::fs::write(&spool, &bytes).with_context(|| spool.display().to_string())?;
+            let loaded = load(&spool).map_err(|err| anyhow!(err.message));
             let _ = std::fs::remove_file(&spool);
             loaded?
         }
@@ -420,7 +456,15 @@ fn process(
             max_regions(w, h)
         ));
     }
-    let mut result = vectorize(models, &loaded.image, options, device).map_err(|err| err.to_string())?;
+    let options = match args.paths {
+        PathBudget::Count(_) => options.clone(),
+        PathBudget::Auto => {
+            let point = operating_point(models, options);
+            let paths = auto_budget(&loaded.image, &point, options.compactness, &AutoBudget::default())?;
+            Options { paths, ..options.clone() }
+        }
+    };
+    let mut result = vectorize(models, &loaded.image, &options, device)?;
     let budget = match (args.finetune_steps, args.finetune_secs) {
         (Some(steps), _) => Some(Budget::StepsPerRegion(steps)),
         (None, Some(seconds)) => Some(Budget::Seconds(seconds)),
@@ -429,7 +473,23 @@ fn process(
     if let Some(budget) = budget {
         let tuning = Instant::now();
         let options = FinetuneOptions { budget, ..FinetuneOptions::default() };
-        finetune(&mut result.scene, &options, &device.clone().autodiff());
+        let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| finetune_bar(budget));
+        let mut show = |progress: &Progress| {
+            if let Some(bar) = &bar {
+                match progress.total_steps {
+                    Some(total) => {
+                        bar.set_length(total as u64);
+                        bar.set_position(progress.steps as u64);
+                    }
+                    None => bar.set_position((progress.seconds * 1000.0) as u64),
+                }
+                bar.set_message(format!("{:.2} dB", progress.psnr));
+            }
+        };
+        finetune_with_progress(&mut result.scene, &options, &device.clone().autodiff(), &mut show);
+        if let Some(bar) = bar {
+            bar.finish_and_clear();
+        }
         result.timings.push(("finetune", tuning.elapsed().as_secs_f64()));
     }
     let scene = result.scene.scene();
@@ -439,17 +499,15 @@ fn process(
     // One group per superpixel region, so editors select a region's paths together.
     let layers: Vec<Option<u32>> = result.scene.paths().iter().map(|placed| placed.region).collect();
     let svg_options = SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() };
-    let svg = to_svg_with(&scene, &layers, width, height, &svg_options).map_err(|err| err.to_string())?;
+    let svg = to_svg_with(&scene, &layers, width, height, &svg_options)?;
     let written = match &job.svg {
         Sink::File(path) => {
-            write_atomic(path, svg.as_bytes()).map_err(|err| format!("{}: {err}", path.display()))?;
+            write_atomic(path, svg.as_bytes()).with_context(|| path.display().to_string())?;
             path.display().to_string()
         }
         Sink::Stdout => {
             let mut out = std::io::stdout().lock();
-            out.write_all(svg.as_bytes())
-                .and_then(|()| out.flush())
-                .map_err(|err| format!("stdout: {err}"))?;
+            out.write_all(svg.as_bytes()).and_then(|()| out.flush()).context("stdout")?;
             "stdout".to_string()
         }
     };
@@ -457,11 +515,11 @@ fn process(
     let needs_render = job.preview.is_some() || job.compare.is_some() || job.metrics.is_some();
     let rendering = needs_render.then(|| render_exact(&scene, w, h, [1.0; 3]));
     if let (Some(path), Some(rendering)) = (&job.preview, &rendering) {
-        write_png(path, rendering).map_err(|err| format!("{}: {err}", path.display()))?;
+        write_png(path, rendering).with_context(|| path.display().to_string())?;
     }
     if let (Some(path), Some(rendering)) = (&job.compare, &rendering) {
         write_png(path, &side_by_side(&loaded.image, rendering))
-            .map_err(|err| format!("{}: {err}", path.display()))?;
+            .with_context(|| path.display().to_string())?;
     }
     let export_seconds = export.elapsed().as_secs_f64();
     let mut quality = String::new();
@@ -499,8 +557,8 @@ fn process(
             "ssim": ssim(&drawn, &loaded.image),
             "seconds": seconds,
         });
-        let text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
-        write_atomic(path, text.as_bytes()).map_err(|err| format!("{}: {err}", path.display()))?;
+        let text = serde_json::to_string_pretty(&report)?;
+        write_atomic(path, text.as_bytes()).with_context(|| path.display().to_string())?;
     }
     Ok(format!(
         "{} -> {written}: {} paths{quality}, {:.2} s",

@@ -3,12 +3,12 @@
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, sync_channel};
 
-use super::source::{Batch, DataSource};
+use super::source::{Batch, DataError, DataSource};
 
 /// Prepares batches `first, first + 1, …` on `workers` threads (batch i on worker i mod workers),
 /// keeping up to `prefetch` batches ready per worker. The order never depends on thread timing.
 pub struct Loader {
-    receivers: Vec<Receiver<Batch>>,
+    receivers: Vec<Receiver<Result<Batch, DataError>>>,
     next: u64,
 }
 
@@ -24,8 +24,14 @@ impl Loader {
                     .name(format!("data-{worker}"))
                     .spawn(move || {
                         let mut index = first + (worker + workers - first % workers) % workers;
-                        // Ends when the loader is dropped and the channel closes.
-                        while sender.send(source.batch(index)).is_ok() {
+                        // Ends when the loader is dropped and the channel closes, or after
+                        // delivering an error.
+                        loop {
+                            let batch = source.batch(index);
+                            let failed = batch.is_err();
+                            if sender.send(batch).is_err() || failed {
+                                break;
+                            }
                             index += workers;
                         }
                     })
@@ -37,12 +43,12 @@ impl Loader {
     }
 
     /// The next batch of the stream, waiting for it if needed.
-    pub fn next_batch(&mut self) -> Batch {
+    pub fn next_batch(&mut self) -> Result<Batch, DataError> {
         let worker = (self.next % self.receivers.len() as u64) as usize;
-        let batch = self.receivers[worker].recv().expect("data threads run until the loader is dropped");
+        let batch = self.receivers[worker].recv().map_err(|_| DataError::WorkerStopped(self.next))??;
         debug_assert_eq!(batch.index, self.next);
         self.next += 1;
-        batch
+        Ok(batch)
     }
 }
 
@@ -58,7 +64,7 @@ mod tests {
         let source = Arc::new(DataSource::new(&config, &model, 2, 1).unwrap());
         let mut loader = Loader::start(Arc::clone(&source), 5, 3, 2);
         for index in 5..12 {
-            assert_eq!(loader.next_batch(), source.batch(index));
+            assert_eq!(loader.next_batch().unwrap(), source.batch(index).unwrap());
         }
     }
 }

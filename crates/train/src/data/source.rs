@@ -6,20 +6,35 @@ use model::{CropBatch, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use superpixel::{RegionCrop, Segmentation, segment};
+use superpixel::{RegionCrop, Segmentation, SlicError, segment};
 
 use super::images::ImageSet;
 use super::synthetic::synthetic_scene;
 use crate::config::DataConfig;
 
-/// A data problem (missing folder, no images…), with a message naming the setting.
+/// A data problem: a setting that cannot be used (missing folder, no images…), or a batch that
+/// could not be made.
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct DataError(String);
+pub enum DataError {
+    /// A setting cannot be used; the message names it.
+    #[error("{0}")]
+    Setting(String),
+    /// A scene of batch `index` could not be segmented (an option out of SLIC's range).
+    #[error("batch {index}: a scene could not be segmented: {source}")]
+    Segment {
+        /// The batch.
+        index: u64,
+        /// SLIC's reason.
+        source: SlicError,
+    },
+    /// A data thread stopped before delivering its batches (it panicked).
+    #[error("the data thread preparing batch {0} stopped")]
+    WorkerStopped(u64),
+}
 
 impl DataError {
     pub(crate) fn new(message: String) -> Self {
-        Self(message)
+        Self::Setting(message)
     }
 }
 
@@ -73,8 +88,8 @@ impl DataSource {
 
     /// Batch `index` of the stream: a pure function of the seed and the index, so a resumed run
     /// sees exactly the batches an uninterrupted one would (with `fixed_batch`, batch 0's
-    /// content every time).
-    pub fn batch(&self, index: u64) -> Batch {
+    /// content every time). Fails only when the segmentation options are out of SLIC's range.
+    pub fn batch(&self, index: u64) -> Result<Batch, DataError> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(if self.config.fixed_batch { 0 } else { index });
         let mut crops = Vec::with_capacity(self.batch_size);
@@ -88,7 +103,7 @@ impl DataSource {
             let count =
                 ((count as f64 * share).round() as usize).clamp(1, (scene.width() * scene.height()) as usize);
             let segmentation = segment(&scene, count, &self.config.segment_options())
-                .expect("generated and loaded scenes are valid SLIC inputs");
+                .map_err(|source| DataError::Segment { index, source })?;
             let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
                 .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
                 .collect();
@@ -100,7 +115,7 @@ impl DataSource {
                 crops.push(self.sample(&scene, &segmentation, region));
             }
         }
-        Batch { index, crops }
+        Ok(Batch { index, crops })
     }
 
     /// A scene to take regions from: generated or from the folder, by `synthetic_weight`.
@@ -134,16 +149,27 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_segmentation_option_out_of_range_is_an_error_not_a_panic() {
+        // Config files are checked on load; a config built in code is not.
+        let config = DataConfig { image_size: 32, segments: [2, 4], oversegment: 0.5, ..Default::default() };
+        let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
+        let source = DataSource::new(&config, &model, 2, 0).unwrap();
+        let err = source.batch(4).unwrap_err();
+        assert!(matches!(err, DataError::Segment { index: 4, .. }), "{err}");
+        assert!(err.to_string().starts_with("batch 4: a scene could not be segmented"), "{err}");
+    }
+
+    #[test]
     fn batches_depend_only_on_seed_and_index() {
         let config = DataConfig { image_size: 64, segments: [4, 8], ..Default::default() };
         let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
         let source = DataSource::new(&config, &model, 5, 7).unwrap();
-        let batch = source.batch(3);
+        let batch = source.batch(3).unwrap();
         assert_eq!(batch.crops.len(), 5);
         assert!(batch.crops.iter().all(|crop| crop.size == 16));
-        assert_eq!(batch, DataSource::new(&config, &model, 5, 7).unwrap().batch(3));
-        assert_ne!(batch, source.batch(4));
-        assert_ne!(batch, DataSource::new(&config, &model, 5, 8).unwrap().batch(3));
+        assert_eq!(batch, DataSource::new(&config, &model, 5, 7).unwrap().batch(3).unwrap());
+        assert_ne!(batch, source.batch(4).unwrap());
+        assert_ne!(batch, DataSource::new(&config, &model, 5, 8).unwrap().batch(3).unwrap());
         // Every crop has some region and fills outside it with −1.
         for crop in &batch.crops {
             assert!(crop.mask.iter().any(|&m| m == 1.0));
