@@ -11,6 +11,14 @@ use image::Rgb32FImage;
 /// Environment variable naming the folder with `alexnet.bin` and `alexnet.json`.
 pub const LPIPS_ENV: &str = "SUPERSVG_LPIPS";
 
+/// The LPIPS weights could not be read; the message names the file and what is wrong with it.
+#[derive(Debug, thiserror::Error)]
+#[error("{message}")]
+pub struct LpipsError {
+    /// What went wrong, with the file.
+    pub message: String,
+}
+
 /// The LPIPS network: AlexNet's five convolutions and the five linear heads.
 pub struct Lpips {
     convs: Vec<(Tensor<4>, Tensor<1>)>,
@@ -31,7 +39,12 @@ impl Lpips {
     }
 
     /// Loads the converted weights from `folder`.
-    pub fn load(folder: &Path, device: &Device) -> Result<Self, String> {
+    pub fn load(folder: &Path, device: &Device) -> Result<Self, LpipsError> {
+        Self::read(folder, device).map_err(|message| LpipsError { message })
+    }
+
+    /// [`Lpips::load`], its messages naming the file at fault.
+    fn read(folder: &Path, device: &Device) -> Result<Self, String> {
         let index_path = folder.join("alexnet.json");
         let index: serde_json::Value = std::fs::read_to_string(&index_path)
             .map_err(|err| format!("{}: {err} (run scripts/fetch-lpips.sh)", index_path.display()))

@@ -176,7 +176,7 @@ impl Checkpoint {
         };
         let model_config: ModelConfig = serde_json::from_str(&get("supersvg.model")?)
             .map_err(|err| format(format!("model config: {err}")))?;
-        model_config.validate().map_err(format)?;
+        model_config.validate().map_err(|err| format(err.0))?;
         let inference = match metadata.get("supersvg.inference") {
             None => None,
             Some(json) => {

@@ -87,7 +87,7 @@ impl ModelConfig {
     }
 
     /// Checks the sizes fit together; the message names the offending field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
         let positive = [
             ("input_size", self.input_size),
             ("patch_size", self.patch_size),
@@ -102,26 +102,26 @@ impl ModelConfig {
             ("fusion_channels", self.fusion_channels),
         ];
         if let Some((name, _)) = positive.iter().find(|(_, value)| *value == 0) {
-            return Err(format!("model.{name} must be positive"));
+            return Err(InvalidSetting(format!("model.{name} must be positive")));
         }
         self.input.validate()?;
         if self.input_size % self.patch_size != 0 {
-            return Err(format!(
+            return Err(InvalidSetting(format!(
                 "model.input_size ({}) must be a multiple of model.patch_size ({})",
                 self.input_size, self.patch_size
-            ));
+            )));
         }
         if self.embed_dim % self.heads != 0 {
-            return Err(format!(
+            return Err(InvalidSetting(format!(
                 "model.embed_dim ({}) must be divisible by model.heads ({})",
                 self.embed_dim, self.heads
-            ));
+            )));
         }
         if self.query_dim % self.query_heads != 0 {
-            return Err(format!(
+            return Err(InvalidSetting(format!(
                 "model.query_dim ({}) must be divisible by model.query_heads ({})",
                 self.query_dim, self.query_heads
-            ));
+            )));
         }
         Ok(())
     }
@@ -131,6 +131,11 @@ impl ModelConfig {
         (self.input_size / self.patch_size).pow(2)
     }
 }
+
+/// A setting out of its range, in a config file or a checkpoint; the message names the field.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidSetting(pub String);
 
 #[cfg(test)]
 mod tests {
@@ -142,8 +147,8 @@ mod tests {
             ModelConfig::preset(preset).validate().unwrap();
         }
         let bad = ModelConfig { input_size: 60, ..ModelConfig::preset(Preset::Cpu) };
-        assert!(bad.validate().unwrap_err().contains("model.input_size"));
+        assert!(bad.validate().unwrap_err().0.contains("model.input_size"));
         let bad = ModelConfig { query_heads: 0, ..ModelConfig::preset(Preset::Cpu) };
-        assert_eq!(bad.validate().unwrap_err(), "model.query_heads must be positive");
+        assert_eq!(bad.validate().unwrap_err().0, "model.query_heads must be positive");
     }
 }

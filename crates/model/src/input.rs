@@ -12,7 +12,7 @@ use raster::Path;
 use serde::{Deserialize, Serialize};
 use superpixel::{CropOptions, RegionCrop, Segmentation, resample_area};
 
-use crate::config::ModelConfig;
+use crate::config::{InvalidSetting, ModelConfig};
 
 /// How region crops are cut, stored with the architecture in every checkpoint.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -35,9 +35,9 @@ impl Default for InputSpec {
 
 impl InputSpec {
     /// Checks the values; the message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
         if !self.fill.is_finite() {
-            return Err("model.input.fill must be a finite number".into());
+            return Err(InvalidSetting("model.input.fill must be a finite number".into()));
         }
         Ok(())
     }

@@ -18,7 +18,7 @@ mod vit;
 
 pub use checkpoint::{Checkpoint, CheckpointError, Stage, load_coarse, load_refine};
 pub use coarse::CoarseModel;
-pub use config::{ModelConfig, Preset};
+pub use config::{InvalidSetting, ModelConfig, Preset};
 pub use decoder::PathDecoder;
 pub use input::{CropBatch, InputSpec, canvas_cells, crop_to_image};
 pub use operating::OperatingPoint;

@@ -3,6 +3,8 @@
 use serde::{Deserialize, Serialize};
 use superpixel::SegmentOptions;
 
+use crate::config::InvalidSetting;
+
 /// How inference splits a path budget between superpixel regions, the coarse model's paths and
 /// the refinement model's paths, and how the regions are made. Which split draws best depends
 /// on how well each model draws, so it is found by measurement (`tune`) and stored in the
@@ -40,15 +42,16 @@ impl Default for OperatingPoint {
 
 impl OperatingPoint {
     /// Checks the values; the message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        let invalid = |message: String| Err(InvalidSetting(message));
         if !(0.0..1.0).contains(&self.refine_share) {
-            return Err(format!("refine_share must be within [0, 1), got {}", self.refine_share));
+            return invalid(format!("refine_share must be within [0, 1), got {}", self.refine_share));
         }
         if !(self.oversegment.is_finite() && self.oversegment >= 1.0) {
-            return Err(format!("oversegment must be at least 1, got {}", self.oversegment));
+            return invalid(format!("oversegment must be at least 1, got {}", self.oversegment));
         }
         if !(0.0..=1.0).contains(&self.min_compactness) {
-            return Err(format!("min_compactness must be within [0, 1], got {}", self.min_compactness));
+            return invalid(format!("min_compactness must be within [0, 1], got {}", self.min_compactness));
         }
         Ok(())
     }

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use model::{ModelConfig, Preset};
+use model::{InvalidSetting, ModelConfig, Preset};
 use raster::SoftRasterOptions;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -356,18 +356,18 @@ pub fn load<T: for<'de> Deserialize<'de> + Validate>(path: &Path) -> Result<T, C
     let error = |message: String| ConfigError { path: path.to_path_buf(), message };
     let text = std::fs::read_to_string(path).map_err(|err| error(err.to_string()))?;
     let config: T = toml::from_str(&text).map_err(|err| error(err.to_string()))?;
-    config.validate().map_err(error)?;
+    config.validate().map_err(|err| error(err.0))?;
     Ok(config)
 }
 
 /// Checks of values that parse but make no sense; messages name the key.
 pub trait Validate {
     /// `Err("table.key …")` for the first bad value.
-    fn validate(&self) -> Result<(), String>;
+    fn validate(&self) -> Result<(), InvalidSetting>;
 }
 
 impl Validate for CoarseConfig {
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidSetting> {
         self.data.validate()?;
         self.train.validate()?;
         self.raster.validate()?;
@@ -379,7 +379,7 @@ impl Validate for CoarseConfig {
 }
 
 impl Validate for RefineConfig {
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidSetting> {
         self.data.validate()?;
         self.train.validate()?;
         self.raster.validate()?;
@@ -403,7 +403,7 @@ impl DataConfig {
         }
     }
 
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidSetting> {
         check(
             self.images.is_some() || self.synthetic,
             "data: set data.images, data.synthetic = true, or both",
@@ -427,7 +427,7 @@ impl DataConfig {
 }
 
 impl OptimConfig {
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidSetting> {
         check(self.steps >= 1, "train.steps must be positive")?;
         check(self.batch_size >= 1, "train.batch_size must be positive")?;
         check(self.lr > 0.0 && self.lr.is_finite(), "train.lr must be positive")?;
@@ -441,7 +441,7 @@ impl OptimConfig {
 }
 
 impl RasterConfig {
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidSetting> {
         check(self.segments_per_curve >= 1, "raster.segments_per_curve must be positive")?;
         check(self.subrows >= 1, "raster.subrows must be positive")?;
         check(
@@ -452,15 +452,15 @@ impl RasterConfig {
 }
 
 impl BoundaryWeight {
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidSetting> {
         check(self.start >= 0.0 && self.end >= 0.0, "loss.boundary.start and end must not be negative")?;
         check(self.decay_per_epoch >= 0.0, "loss.boundary.decay_per_epoch must not be negative")?;
         check(self.epoch_steps >= 1, "loss.boundary.epoch_steps must be positive")
     }
 }
 
-fn check(ok: bool, message: &str) -> Result<(), String> {
-    if ok { Ok(()) } else { Err(message.to_string()) }
+fn check(ok: bool, message: &str) -> Result<(), InvalidSetting> {
+    if ok { Ok(()) } else { Err(InvalidSetting(message.to_string())) }
 }
 
 #[cfg(test)]
@@ -469,7 +469,7 @@ mod tests {
 
     fn parse<T: for<'de> Deserialize<'de> + Validate>(text: &str) -> Result<T, String> {
         let config: T = toml::from_str(text).map_err(|err| err.to_string())?;
-        config.validate()?;
+        config.validate().map_err(|err| err.0)?;
         Ok(config)
     }
 

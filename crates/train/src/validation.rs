@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 
 use image::Rgb32FImage;
-use model::{ModelConfig, OperatingPoint};
+use model::{InvalidSetting, ModelConfig, OperatingPoint};
 use raster::{Path, coverage_exact, paint_exact};
 use serde::{Deserialize, Serialize};
 use superpixel::{RegionCrop, segment};
@@ -49,15 +49,16 @@ impl Default for ValidationConfig {
 
 impl ValidationConfig {
     /// Checks the values; the message names the key.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        let invalid = |message: &str| Err(InvalidSetting(message.into()));
         if self.crops == 0 || self.every == 0 {
-            return Err("validation.crops and validation.every must be positive".into());
+            return invalid("validation.crops and validation.every must be positive");
         }
         if self.image_size < 16 {
-            return Err("validation.image_size must be at least 16".into());
+            return invalid("validation.image_size must be at least 16");
         }
         if self.segments[0] == 0 || self.segments[0] > self.segments[1] {
-            return Err("validation.segments must be [low, high] with 1 ≤ low ≤ high".into());
+            return invalid("validation.segments must be [low, high] with 1 ≤ low ≤ high");
         }
         Ok(())
     }
