@@ -2,14 +2,51 @@
 //! superpixels with their mean colour (pixel-exact), and SuperSVG's own fallback drawing alone.
 //! Plus SVG rendering and path counting that treat every method alike.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
 use image::{Rgb, Rgb32FImage};
 use model::OperatingPoint;
 use raster::Path as VectorPath;
-use superpixel::{SlicOptions, slic};
+use superpixel::{SlicError, SlicOptions, slic};
+
+/// Why a method could not draw an image.
+#[derive(Debug, thiserror::Error)]
+pub enum PeerError {
+    /// An external program could not be started or failed.
+    #[error("{program}: {message}")]
+    Program {
+        /// The program.
+        program: &'static str,
+        /// Its error output, or why it did not start.
+        message: String,
+    },
+    /// A scratch file could not be written or read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        source: std::io::Error,
+    },
+    /// An SVG could not be written or parsed.
+    #[error("SVG: {0}")]
+    Svg(String),
+    /// The image could not be segmented.
+    #[error(transparent)]
+    Segmentation(#[from] SlicError),
+}
+
+impl PeerError {
+    fn io(path: &Path) -> impl FnOnce(std::io::Error) -> Self + '_ {
+        move |source| Self::Io { path: path.to_path_buf(), source }
+    }
+
+    fn program(program: &'static str) -> impl Fn(String) -> Self {
+        move |message| Self::Program { program, message }
+    }
+}
 
 /// An SVG made by some method, and the seconds it took.
 pub struct Traced {
@@ -21,10 +58,11 @@ pub struct Traced {
 
 /// Renders an SVG document with resvg onto `width × height` (the document is scaled to fit),
 /// over white.
-pub fn render_svg(svg: &str, width: u32, height: u32) -> Result<Rgb32FImage, String> {
-    let tree =
-        resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default()).map_err(|err| err.to_string())?;
-    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).ok_or("empty canvas")?;
+pub fn render_svg(svg: &str, width: u32, height: u32) -> Result<Rgb32FImage, PeerError> {
+    let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default())
+        .map_err(|err| PeerError::Svg(err.to_string()))?;
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height)
+        .ok_or_else(|| PeerError::Svg(format!("cannot render onto {width}×{height}")))?;
     pixmap.fill(resvg::tiny_skia::Color::WHITE);
     let size = tree.size();
     let scale =
@@ -54,8 +92,9 @@ pub fn available(program: &str) -> bool {
 /// at most `shapes` shapes and as many as possible: knob k sets the speckle filter to
 /// min(16, 4 + k) px and, past that, the colour gradient step to 16 + (k − 12) (fewer layers);
 /// `None` keeps vtracer's defaults (speckle 4, gradient step 16).
-pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Traced, String> {
-    let run = |knob: usize| -> Result<Traced, String> {
+pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Traced, PeerError> {
+    let failed = PeerError::program("vtracer");
+    let run = |knob: usize| -> Result<Traced, PeerError> {
         let speckle = (4 + knob).min(16);
         let gradient = (16 + knob.saturating_sub(12)).min(255);
         let out = scratch.join(format!("vtracer-{knob}.svg"));
@@ -64,12 +103,12 @@ pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Trac
             .args(["--input", &png.to_string_lossy(), "--output", &out.to_string_lossy()])
             .args(["--filter_speckle", &speckle.to_string(), "--gradient_step", &gradient.to_string()])
             .output()
-            .map_err(|err| err.to_string())?;
+            .map_err(|err| failed(err.to_string()))?;
         let seconds = started.elapsed().as_secs_f64();
         if !status.status.success() {
-            return Err(String::from_utf8_lossy(&status.stderr).into_owned());
+            return Err(failed(String::from_utf8_lossy(&status.stderr).into_owned()));
         }
-        let svg = std::fs::read_to_string(&out).map_err(|err| err.to_string())?;
+        let svg = std::fs::read_to_string(&out).map_err(PeerError::io(&out))?;
         Ok(Traced { svg, seconds })
     };
     match shapes {
@@ -87,8 +126,9 @@ pub fn potrace_colors(
     colors: usize,
     shapes: Option<usize>,
     scratch: &Path,
-) -> Result<Traced, String> {
+) -> Result<Traced, PeerError> {
     let started = Instant::now();
+    let failed = PeerError::program("potrace");
     let (palette, labels) = quantize(image, colors);
     let quantize_seconds = started.elapsed().as_secs_f64();
     let mut order: Vec<usize> = (0..palette.len()).collect();
@@ -100,7 +140,7 @@ pub fn potrace_colors(
         rank
     };
     let (width, height) = image.dimensions();
-    let run = |turd: usize| -> Result<Traced, String> {
+    let run = |turd: usize| -> Result<Traced, PeerError> {
         let started = Instant::now();
         let mut body = String::new();
         for (layer, &k) in order.iter().enumerate() {
@@ -112,14 +152,14 @@ pub fn potrace_colors(
                     bits.push(b'\n');
                 }
             }
-            std::fs::write(&pbm, bits).map_err(|err| err.to_string())?;
+            std::fs::write(&pbm, bits).map_err(PeerError::io(&pbm))?;
             let out = Command::new("potrace")
                 .args(["-b", "svg", "-t", &turd.to_string(), "-o", "-"])
                 .arg(&pbm)
                 .output()
-                .map_err(|err| err.to_string())?;
+                .map_err(|err| failed(err.to_string()))?;
             if !out.status.success() {
-                return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+                return Err(failed(String::from_utf8_lossy(&out.stderr).into_owned()));
             }
             let svg = String::from_utf8_lossy(&out.stdout);
             let [r, g, b] = palette[k].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
@@ -158,13 +198,12 @@ pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FIma
 /// superpixels (made and chosen as the default operating point makes them), each its outline fitted with
 /// one path in its mean colour. What the pipeline starts from, and what its learned stages must
 /// improve on.
-pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorPath>, f64), String> {
+pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorPath>, f64), PeerError> {
     let started = Instant::now();
     let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
     let point = OperatingPoint::default();
     let (_, drawing) =
-        infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)
-            .map_err(|err| err.to_string())?;
+        infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)?;
     Ok((drawing.paths(), started.elapsed().as_secs_f64()))
 }
 
@@ -173,10 +212,10 @@ pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorP
 /// nothing fits.
 fn search(
     target: usize,
-    run: impl Fn(usize) -> Result<Traced, String>,
+    run: impl Fn(usize) -> Result<Traced, PeerError>,
     low: usize,
     high: usize,
-) -> Result<Traced, String> {
+) -> Result<Traced, PeerError> {
     let (mut low, mut high) = (low, high);
     let mut fitting: Option<(usize, Traced)> = None;
     let mut fewest: Option<(usize, Traced)> = None;
@@ -202,7 +241,8 @@ fn search(
             low = knob + 1;
         }
     }
-    fitting.or(fewest).map(|(_, traced)| traced).ok_or_else(|| "no run".into())
+    // The loop runs at least once, and a run that did not fail is kept as fitting or fewest.
+    Ok(fitting.or(fewest).map(|(_, traced)| traced).expect("at least one run was kept"))
 }
 
 /// k-means in RGB (10 rounds, centres started at luminance quantiles): palette and labels.
@@ -248,6 +288,9 @@ mod tests {
         let image = render_svg(svg, 20, 20).unwrap();
         assert_eq!(image.get_pixel(2, 10).0, [1.0, 0.0, 0.0]);
         assert_eq!(image.get_pixel(15, 10).0, [1.0, 1.0, 1.0]);
+        let err = render_svg("not an svg", 4, 4).err().expect("garbage is refused");
+        assert!(matches!(err, PeerError::Svg(_)), "{err}");
+        assert!(matches!(render_svg(svg, 0, 4), Err(PeerError::Svg(_))));
     }
 
     #[test]

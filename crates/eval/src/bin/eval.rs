@@ -18,7 +18,8 @@ use clap::Parser;
 use eval::cli::{files_in, finish, load_models};
 use eval::lpips::Lpips;
 use eval::peers::{
-    available, count_shapes, fallback_mosaic, mean_color_superpixels, potrace_colors, render_svg, vtracer,
+    PeerError, available, count_shapes, fallback_mosaic, mean_color_superpixels, potrace_colors, render_svg,
+    vtracer,
 };
 use eval::spill::spill;
 use image::{Rgb32FImage, RgbImage};
@@ -154,7 +155,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         let mut tiles = vec![("input".to_string(), image.clone())];
         let mut record = |budget: usize,
                           method: &str,
-                          drawn: Result<(Rgb32FImage, usize), String>,
+                          drawn: Result<(Rgb32FImage, usize), PeerError>,
                           seconds: f64,
                           anatomy: Option<Anatomy>,
                           tiles: &mut Vec<(String, Rgb32FImage)>| {
@@ -178,8 +179,9 @@ fn run(args: Args) -> anyhow::Result<()> {
             }
         };
         let rendered = |svg: &str| render_svg(svg, width, height).map(|drawn| (drawn, count_shapes(svg)));
-        let drawing = |scene: &Scene| -> Result<(Rgb32FImage, usize), String> {
-            let svg = to_svg(&scene.scene(), width, height, None).map_err(|e| e.to_string())?;
+        let drawing = |scene: &Scene| -> Result<(Rgb32FImage, usize), PeerError> {
+            let svg =
+                to_svg(&scene.scene(), width, height, None).map_err(|e| PeerError::Svg(e.to_string()))?;
             rendered(&svg)
         };
         let anatomy = |scene: &Scene| Anatomy {
@@ -204,7 +206,8 @@ fn run(args: Args) -> anyhow::Result<()> {
             }
             if wanted("fallback") {
                 let drawn = fallback_mosaic(image, budget).and_then(|(paths, seconds)| {
-                    let svg = to_svg(&paths, width, height, None).map_err(|e| e.to_string())?;
+                    let svg =
+                        to_svg(&paths, width, height, None).map_err(|e| PeerError::Svg(e.to_string()))?;
                     Ok((rendered(&svg)?, seconds))
                 });
                 let seconds = drawn.as_ref().map_or(0.0, |(_, s)| *s);
