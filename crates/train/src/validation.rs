@@ -123,6 +123,17 @@ impl Validation {
         Ok(Some(Self { crops, dilation }))
     }
 
+    /// [`Validation::build`] with how often a run scores the set (`config.every` steps): what
+    /// [`crate::trainer::Run`] takes.
+    pub fn scheduled(
+        config: &ValidationConfig,
+        data: &DataConfig,
+        model: &ModelConfig,
+        dilation: usize,
+    ) -> Result<Option<(Self, usize)>, DataError> {
+        Ok(Self::build(config, data, model, dilation)?.map(|set| (set, config.every)))
+    }
+
     /// The crops.
     pub fn crops(&self) -> &[RegionCrop] {
         &self.crops

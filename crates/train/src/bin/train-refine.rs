@@ -50,13 +50,12 @@ fn run(args: CommonArgs, init: PathBuf) -> Result<train::trainer::Summary, Box<d
         seed: config.train.seed,
     };
     let config_json = serde_json::to_value(&config)?;
-    let validation = Validation::build(
+    let validation = Validation::scheduled(
         &config.validation,
         &config.data,
         &start.model_config,
         config.loss.boundary.dilation,
-    )?
-    .map(|set| (set, config.validation.every));
+    )?;
     let run = Run { dir, device, validation };
     Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)
 }
