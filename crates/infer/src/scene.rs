@@ -249,21 +249,8 @@ impl Scene {
     /// anti-aliasing, within the canvas; `None` when that is empty or not finite.
     pub fn pixel_box(&self, path: &Path) -> Option<BoundingBox> {
         let (width, height) = self.size();
-        let bounds = path.bounds();
-        let scale = |v: f32, size: u32| v * size as f32;
-        let (x0, y0) = (scale(bounds.x0, width).floor() - 1.0, scale(bounds.y0, height).floor() - 1.0);
-        let (x1, y1) = (scale(bounds.x1, width).ceil() + 1.0, scale(bounds.y1, height).ceil() + 1.0);
-        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
-            return None;
-        }
-        let clamp = |v: f32, size: u32| v.clamp(0.0, size as f32) as u32;
-        let bbox = BoundingBox {
-            x0: clamp(x0, width),
-            y0: clamp(y0, height),
-            x1: clamp(x1, width),
-            y1: clamp(y1, height),
-        };
-        (bbox.x0 < bbox.x1 && bbox.y0 < bbox.y1).then_some(bbox)
+        let [x0, y0, x1, y1] = path.pixel_box(width, height)?;
+        Some(BoundingBox { x0, y0, x1, y1 })
     }
 
     fn save(&self, bbox: BoundingBox) -> Pixmap {

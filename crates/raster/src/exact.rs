@@ -58,20 +58,36 @@ pub fn paint_exact(pixmap: &mut Pixmap, path: &Path, canvas: (u32, u32), origin:
     let Some(color) = Color::from_rgba(r, g, b, path.alpha.clamp(0.0, 1.0)) else { return false };
     let mut paint = Paint::default();
     paint.set_color(color);
-    // Scale first, then move by whole pixels: the same float coordinates as on the whole canvas,
-    // minus integers, so the rasterizer sees the same sub-pixel positions.
-    let transform = Transform::from_scale(canvas.0 as f32, canvas.1 as f32)
-        .post_translate(-(origin.0 as f32), -(origin.1 as f32));
-    pixmap.fill_path(&outline, &paint, FillRule::Winding, transform, None);
+    pixmap.fill_path(&outline, &paint, FillRule::Winding, canvas_transform(canvas, origin), None);
     true
+}
+
+/// Unit-square coordinates of a `canvas` to the pixels of a window whose top-left pixel is
+/// `origin`: scale first, then move by whole pixels, so that the rasterizer sees the same
+/// sub-pixel positions as on the whole canvas.
+fn canvas_transform(canvas: (u32, u32), origin: (u32, u32)) -> Transform {
+    Transform::from_scale(canvas.0 as f32, canvas.1 as f32)
+        .post_translate(-(origin.0 as f32), -(origin.1 as f32))
 }
 
 /// The exact anti-aliased coverage (0–255 per pixel, row-major) of `path` alone on a `width ×
 /// height` canvas, opacity ignored; `None` for a path that cannot be drawn or an empty canvas.
 pub fn coverage_exact(path: &Path, width: u32, height: u32) -> Option<Mask> {
+    coverage_exact_window(path, (width, height), (0, 0), (width, height))
+}
+
+/// [`coverage_exact`] inside the `size` window of a `canvas` = (width, height) image whose
+/// top-left pixel is `origin` (placed as [`paint_exact`] places paths), for the cost of the
+/// window.
+pub fn coverage_exact_window(
+    path: &Path,
+    canvas: (u32, u32),
+    origin: (u32, u32),
+    size: (u32, u32),
+) -> Option<Mask> {
     let outline = skia_outline(path)?;
-    let mut mask = Mask::new(width, height)?;
-    mask.fill_path(&outline, FillRule::Winding, true, Transform::from_scale(width as f32, height as f32));
+    let mut mask = Mask::new(size.0, size.1)?;
+    mask.fill_path(&outline, FillRule::Winding, true, canvas_transform(canvas, origin));
     Some(mask)
 }
 

@@ -83,6 +83,24 @@ impl Path {
     }
 }
 
+impl Path {
+    /// The pixels `[x0, x1) × [y0, y1)` (as `[x0, y0, x1, y1]`) the path can change on a
+    /// `width × height` canvas: its bounds, widened by a pixel for anti-aliasing, within the
+    /// canvas; `None` when that is empty or not finite.
+    pub fn pixel_box(&self, width: u32, height: u32) -> Option<[u32; 4]> {
+        let bounds = self.bounds();
+        let scale = |v: f32, size: u32| v * size as f32;
+        let (x0, y0) = (scale(bounds.x0, width).floor() - 1.0, scale(bounds.y0, height).floor() - 1.0);
+        let (x1, y1) = (scale(bounds.x1, width).ceil() + 1.0, scale(bounds.y1, height).ceil() + 1.0);
+        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+            return None;
+        }
+        let clamp = |v: f32, size: u32| v.clamp(0.0, size as f32) as u32;
+        let [x0, y0, x1, y1] = [clamp(x0, width), clamp(y0, height), clamp(x1, width), clamp(y1, height)];
+        (x0 < x1 && y0 < y1).then_some([x0, y0, x1, y1])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,15 +6,19 @@ pub mod device;
 mod exact;
 mod fit;
 mod geometry;
+mod gradient;
 mod path;
 mod shapes;
 mod soft;
 mod svg;
 
 pub use device::{Backend, BackendError};
-pub use exact::{coverage_exact, paint_exact, render_exact, render_exact_window, skia_outline};
+pub use exact::{
+    coverage_exact, coverage_exact_window, paint_exact, render_exact, render_exact_window, skia_outline,
+};
 pub use fit::fit_outline;
 pub use geometry::{Bounds, bernstein, cubic_point};
+pub use gradient::Window;
 pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS};
 pub use shapes::{random_blob, random_scene};
 pub use soft::{

@@ -65,7 +65,9 @@ impl Path {
         self
     }
 
-    fn to_params(self) -> [f32; PARAMS] {
+    /// The path as its 28 parameters, in [`PathBatch`]'s layout: coordinates (x, y per point),
+    /// RGB, α. Optimizers that work on plain numbers (and gradients) use this layout.
+    pub fn to_params(self) -> [f32; PARAMS] {
         let mut params = [0.0; PARAMS];
         for (i, [x, y]) in self.points.into_iter().enumerate() {
             params[2 * i] = x;
@@ -76,7 +78,8 @@ impl Path {
         params
     }
 
-    fn from_params(params: &[f32]) -> Self {
+    /// The path of 28 parameters in [`Self::to_params`]'s layout.
+    pub fn from_params(params: &[f32; PARAMS]) -> Self {
         let mut points = [[0.0; 2]; POINTS];
         for (i, point) in points.iter_mut().enumerate() {
             *point = [params[2 * i], params[2 * i + 1]];
@@ -143,7 +146,7 @@ impl PathBatch {
         let values = self.params.try_to_vec_as::<f32>().expect("path parameters are readable");
         values
             .chunks_exact(PARAMS)
-            .map(Path::from_params)
+            .map(|params| Path::from_params(params.try_into().expect("chunks of PARAMS values")))
             .collect::<Vec<_>>()
             .chunks(paths.max(1))
             .take(batch)
