@@ -2,10 +2,10 @@
 //! then fine-tuning runs from that same drawing for 2, 5 and 10 seconds.
 //!
 //! `cargo run --release -p infer --example bench-finetune -- IMAGE [--paths 500] [--size 512]
-//!  [--lr X] [--steps-per-turn N]`
+//!  [--lr-points X] [--lr-colors Y]`
 //!
 //! Prints one line per budget, then, last, one JSON line: `steps_per_s` and `ms_per_step` (of
-//! the 10 s run; a step is one Adam step of one region), `psnr_b` and `psnr_after` (seconds →
+//! the 10 s run; a step is one Adam step of every path), `psnr_b` and `psnr_after` (seconds →
 //! PSNR of the exact rendering).
 
 use std::path::PathBuf;
@@ -30,12 +30,12 @@ struct Args {
     /// Long side of the working resolution.
     #[arg(long, default_value_t = 512)]
     size: u32,
-    /// Adam learning rate (default: [`FinetuneOptions::default`]'s).
+    /// Adam learning rate of the control points (default: [`FinetuneOptions::default`]'s).
     #[arg(long)]
-    lr: Option<f64>,
-    /// Adam steps a region takes per turn (default: [`FinetuneOptions::default`]'s).
+    lr_points: Option<f32>,
+    /// Adam learning rate of colours and opacity (default: [`FinetuneOptions::default`]'s).
     #[arg(long)]
-    steps_per_turn: Option<usize>,
+    lr_colors: Option<f32>,
 }
 
 /// The fine-tuning budgets measured, in seconds.
@@ -56,12 +56,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let defaults = FinetuneOptions::default();
         let options = FinetuneOptions {
             budget: Budget::Seconds(seconds),
-            lr: args.lr.unwrap_or(defaults.lr),
-            steps_per_turn: args.steps_per_turn.unwrap_or(defaults.steps_per_turn),
+            lr_points: args.lr_points.unwrap_or(defaults.lr_points),
+            lr_colors: args.lr_colors.unwrap_or(defaults.lr_colors),
             ..defaults
         };
         let started = Instant::now();
-        let steps = finetune(&mut scene, &options, &device.clone().autodiff());
+        let steps = finetune(&mut scene, &options);
         let spent = started.elapsed().as_secs_f64();
         let tuned = psnr(&scene.canvas_image(), &image);
         println!("{seconds} s: {steps} steps in {spent:.2} s, {tuned:.2} dB ({:+.2})", tuned - psnr_b);

@@ -199,7 +199,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                 let tuning = Instant::now();
                 let options_f =
                     FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
-                finetune(&mut result.scene, &options_f, &device.clone().autodiff());
+                finetune(&mut result.scene, &options_f);
                 let total = seconds + tuning.elapsed().as_secs_f64();
                 let parts = Some(anatomy(&result.scene));
                 record(budget, "SuperSVG-F (ours)", drawing(&result.scene), total, parts, &mut tiles);

@@ -72,7 +72,7 @@ struct Args {
     /// Write MSE, PSNR, SSIM, path count and seconds per stage as JSON (`.json` file, or a folder).
     #[arg(long)]
     metrics: Option<PathBuf>,
-    /// SuperSVG-F: fine-tune every path against the image, this many steps per region.
+    /// SuperSVG-F: fine-tune every path against the image, this many steps (each moves every path).
     #[arg(long, conflicts_with = "finetune_secs")]
     finetune_steps: Option<usize>,
     /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
@@ -99,7 +99,7 @@ const MAX_SIZE: u32 = 8192;
 fn finetune_bar(budget: Budget) -> ProgressBar {
     let (length, unit) = match budget {
         Budget::Seconds(seconds) => ((seconds * 1000.0) as u64, "ms"),
-        Budget::StepsPerRegion(_) => (0, "steps"),
+        Budget::Steps(_) => (0, "steps"),
     };
     let bar = ProgressBar::new(length);
     let template = format!("fine-tuning {{bar:30}} {{pos}}/{{len}} {unit}, {{msg}}");
@@ -466,7 +466,7 @@ fn process(
     };
     let mut result = vectorize(models, &loaded.image, &options, device)?;
     let budget = match (args.finetune_steps, args.finetune_secs) {
-        (Some(steps), _) => Some(Budget::StepsPerRegion(steps)),
+        (Some(steps), _) => Some(Budget::Steps(steps)),
         (None, Some(seconds)) => Some(Budget::Seconds(seconds)),
         (None, None) => None,
     };
@@ -486,7 +486,7 @@ fn process(
                 bar.set_message(format!("{:.2} dB", progress.psnr));
             }
         };
-        finetune_with_progress(&mut result.scene, &options, &device.clone().autodiff(), &mut show);
+        finetune_with_progress(&mut result.scene, &options, &mut show);
         if let Some(bar) = bar {
             bar.finish_and_clear();
         }
