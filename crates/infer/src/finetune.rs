@@ -35,12 +35,13 @@ pub struct FinetuneOptions {
 const WHITE: [f32; 3] = [1.0; 3];
 
 impl Default for FinetuneOptions {
-    /// Rates measured with `bench-finetune` at 500 paths, gain after 2 / 10 s on the baboon
-    /// (the hardest photo): points 1e-3 and colours 3e-2 +1.03 / +1.28 dB (on all 8 photos
-    /// +3.00 / +3.33); 1e-3 / 1e-2 +0.84 / +1.15; 2e-3 / 1e-2 +0.92 / +1.03; 5e-4 / 1e-2
-    /// +0.91 / +1.18; 3e-4 / 3e-3 +0.72 / +1.00. Points at 1e-3 move about half a pixel a
-    /// step at 512 px (the reference's rate). Linear decay to a tenth over the budget lost on
-    /// the 8 photos: +2.85 / +3.24 (and +2.91 / +3.24 from twice the rates).
+    /// Rates measured with `bench-finetune --lr-points X --lr-colors Y` on the 8 photos of
+    /// data/eval/photos at 500 paths, mean gain over B after 2 / 5 / 10 s: points 1e-3 and
+    /// colours 3e-2 +3.00 / +3.24 / +3.33 dB; 5e-4 / 3e-2 +2.93 / +3.27 / +3.42; 2e-3 / 3e-2
+    /// +2.78 / +2.91 / +2.95; 1e-3 / 1e-2 +2.70 / +2.92 / +3.05; 1e-3 / 1e-1 +3.02 / +3.23 /
+    /// +3.30; the default with both rates falling linearly to a tenth over the budget +2.85 /
+    /// +3.13 / +3.24. Points at 1e-3 move about half a pixel a step at 512 px (the reference's
+    /// rate).
     fn default() -> Self {
         Self { budget: Budget::Steps(100), lr_points: 1e-3, lr_colors: 3e-2 }
     }

@@ -1,6 +1,6 @@
-//! The exact rendering of a few paths over a fixed canvas, with the gradient of its L2 error, on
-//! the CPU: what fine-tuning needs, for a cost that grows with the window's pixels and the
-//! paths' outlines, not with the size of an autodiff graph.
+//! The exact rendering of paths over a fixed canvas, with the gradient of its L2 error, on the
+//! CPU: what fine-tuning needs, for a cost that grows with the pixels each path covers and the
+//! length of its outline, not with paths × pixels or the size of an autodiff graph.
 //!
 //! The forward pass is tiny-skia's anti-aliased coverage (the exact renderer's), composited in
 //! painter's order. The gradient of the colour and opacity follows from the coverage; that of
@@ -42,16 +42,6 @@ impl Window {
             canvas,
             target,
         })
-    }
-
-    /// Width in pixels.
-    pub fn width(&self) -> u32 {
-        self.width
-    }
-
-    /// Height in pixels.
-    pub fn height(&self) -> u32 {
-        self.height
     }
 
     /// `paths` (coordinates in the window's unit square) painted exactly, in order, over the
