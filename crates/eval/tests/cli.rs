@@ -56,3 +56,33 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The report compares sizes as well as quality: an SVG KB column (a dash for the pixel-exact
+/// mosaic, which is no SVG) and a section where each method picks its own budget, SuperSVG-B
+/// with `--paths auto`.
+#[test]
+fn report_has_svg_sizes_and_the_auto_budget() {
+    let dir = std::env::temp_dir().join(format!("supersvg-eval-report-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let picture = image::RgbImage::from_fn(48, 32, |x, y| image::Rgb([(x * 5) as u8, (y * 7) as u8, 90]));
+    picture.save(dir.join("a.png")).unwrap();
+    let out = dir.join("report.md");
+    let result = Command::new(EVAL)
+        .arg(&dir)
+        .args(["--out", out.to_str().unwrap(), "--paths", "16", "--size", "48", "--peers", "slic"])
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+    let report = std::fs::read_to_string(&out).unwrap();
+    assert!(report.contains("| method | shapes | SVG KB | PSNR (dB)"), "{report}");
+    let row = |method: &str| {
+        let line = report.lines().find(|l| l.starts_with(&format!("| {method} |"))).unwrap_or_else(|| {
+            panic!("no row for {method} in {report}");
+        });
+        line.split('|').map(str::trim).nth(3).unwrap().to_string()
+    };
+    assert!(row("SuperSVG-B (ours)").parse::<f64>().unwrap() > 0.0, "{report}");
+    assert!(row("SuperSVG-B (ours), --paths auto").parse::<f64>().unwrap() > 0.0, "{report}");
+    assert_eq!(row("SLIC regions, mean colour"), "—", "{report}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -26,7 +26,7 @@ use image::{Rgb32FImage, RgbImage};
 use infer::decode::load;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
 use infer::metrics::{mse, psnr, ssim};
-use infer::pipeline::{MAX_PATHS, Options, vectorize};
+use infer::pipeline::{AutoBudget, MAX_PATHS, Options, auto_budget, operating_point, vectorize};
 use infer::scene::{Origin, Scene};
 use infer::write::{write_atomic, write_png};
 use raster::{Backend, to_svg};
@@ -76,6 +76,8 @@ struct Args {
 /// One method's result on one image at one budget.
 struct Row {
     shapes: usize,
+    /// Size of the SVG file (none for the pixel-exact mosaic, which is no SVG).
+    bytes: Option<usize>,
     mse: f64,
     psnr: f64,
     ssim: f64,
@@ -83,6 +85,13 @@ struct Row {
     seconds: f64,
     /// Paths per stage and spill, for SuperSVG's own drawings.
     anatomy: Option<Anatomy>,
+}
+
+/// A method's picture of one image: its rendering, shapes and SVG size.
+struct Drawn {
+    image: Rgb32FImage,
+    shapes: usize,
+    bytes: Option<usize>,
 }
 
 /// What a SuperSVG drawing is made of.
@@ -155,14 +164,15 @@ fn run(args: Args) -> anyhow::Result<()> {
         let mut tiles = vec![("input".to_string(), image.clone())];
         let mut record = |budget: usize,
                           method: &str,
-                          drawn: Result<(Rgb32FImage, usize), PeerError>,
+                          drawn: Result<Drawn, PeerError>,
                           seconds: f64,
                           anatomy: Option<Anatomy>,
                           tiles: &mut Vec<(String, Rgb32FImage)>| {
             match drawn {
-                Ok((drawn, shapes)) => {
+                Ok(Drawn { image: drawn, shapes, bytes }) => {
                     let row = Row {
                         shapes,
+                        bytes,
                         mse: mse(&drawn, image),
                         psnr: psnr(&drawn, image),
                         ssim: ssim(&drawn, image).unwrap_or(f64::NAN),
@@ -178,8 +188,14 @@ fn run(args: Args) -> anyhow::Result<()> {
                 Err(err) => eprintln!("{}: {method} at {budget}: {err}", path.display()),
             }
         };
-        let rendered = |svg: &str| render_svg(svg, width, height).map(|drawn| (drawn, count_shapes(svg)));
-        let drawing = |scene: &Scene| -> Result<(Rgb32FImage, usize), PeerError> {
+        let rendered = |svg: &str| {
+            render_svg(svg, width, height).map(|drawn| Drawn {
+                image: drawn,
+                shapes: count_shapes(svg),
+                bytes: Some(svg.len()),
+            })
+        };
+        let drawing = |scene: &Scene| -> Result<Drawn, PeerError> {
             let svg =
                 to_svg(&scene.scene(), width, height, None).map_err(|e| PeerError::Svg(e.to_string()))?;
             rendered(&svg)
@@ -227,9 +243,19 @@ fn run(args: Args) -> anyhow::Result<()> {
             }
             if wanted("slic") {
                 let (filled, regions, seconds) = mean_color_superpixels(image, budget);
-                record(budget, "SLIC regions, mean colour", Ok((filled, regions)), seconds, None, &mut tiles);
+                let drawn = Drawn { image: filled, shapes: regions, bytes: None };
+                record(budget, "SLIC regions, mean colour", Ok(drawn), seconds, None, &mut tiles);
             }
         }
+        // Each method's own budget: `--paths auto` for SuperSVG-B, vtracer's defaults.
+        let started = Instant::now();
+        let defaults = Options::default();
+        let point = operating_point(&models, &defaults);
+        let paths = auto_budget(image, &point, defaults.compactness, &AutoBudget::default())?;
+        let result = vectorize(&models, image, &Options { paths, ..defaults }, &device)?;
+        let seconds = started.elapsed().as_secs_f64();
+        let parts = Some(anatomy(&result.scene));
+        record(0, "SuperSVG-B (ours), --paths auto", drawing(&result.scene), seconds, parts, &mut tiles);
         if use_vtracer {
             let traced = vtracer(&png, None, &scratch);
             let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
@@ -284,14 +310,20 @@ fn report(
         b
     };
     for budget in budgets {
-        let title = if budget == 0 { "Default settings".to_string() } else { format!("{budget} paths") };
+        let title =
+            if budget == 0 { "Each method's own budget".to_string() } else { format!("{budget} paths") };
         let _ = writeln!(
             text,
-            "## {title}\n\n| method | shapes | PSNR (dB) | SSIM | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+            "## {title}\n\n| method | shapes | SVG KB | PSNR (dB) | SSIM | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
         );
         let rows_here = results.iter().filter(|((b, _), _)| *b == budget);
         for ((_, method), rows) in rows_here.clone() {
             let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
+            let kilobytes = if rows.iter().all(|r| r.bytes.is_some()) {
+                format!("{:.1}", mean(&|r| r.bytes.unwrap_or(0) as f64) / 1000.0)
+            } else {
+                "—".to_string()
+            };
             let lpips = if rows.iter().all(|r| r.lpips.is_some()) {
                 format!("{:.4}", mean(&|r| r.lpips.unwrap_or(f64::NAN)))
             } else {
@@ -299,7 +331,7 @@ fn report(
             };
             let _ = writeln!(
                 text,
-                "| {method} | {:.0} | {:.2} | {:.4} | {:.5} | {lpips} | {:.2} |",
+                "| {method} | {:.0} | {kilobytes} | {:.2} | {:.4} | {:.5} | {lpips} | {:.2} |",
                 mean(&|r| r.shapes as f64),
                 mean(&|r| r.psnr),
                 mean(&|r| r.ssim),
