@@ -118,8 +118,8 @@ impl Window {
 
     /// The rows `rows` of the render and, with `backward`, their share of the loss and of the
     /// gradient.
-    fn band(
-        &self,
+    fn band<'a>(
+        &'a self,
         paths: &[Path],
         coverages: &[Option<Coverage>],
         rows: Range<usize>,
@@ -128,11 +128,15 @@ impl Window {
         let width = self.width as usize;
         let values = 3 * self.width as usize * self.height as usize;
         let (pixels, offset) = (rows.len() * width, rows.start * width);
-        let plane = |buffer: &[f32], c: usize| {
+        // The band's rows of channel `c` of a planar window buffer.
+        let plane = |buffer: &'a [f32], c: usize| -> &'a [f32] {
             let start = c * width * self.height as usize + offset;
-            buffer[start..start + pixels].to_vec()
+            &buffer[start..start + pixels]
         };
-        let mut render: Vec<f32> = (0..3).flat_map(|c| plane(&self.canvas, c)).collect();
+        let mut render: Vec<f32> = Vec::with_capacity(3 * pixels);
+        for c in 0..3 {
+            render.extend_from_slice(plane(&self.canvas, c));
+        }
         // The rows of each path's box inside the band, and the band's pixels under it there.
         let mut layers: Vec<Option<(Range<usize>, Vec<f32>)>> = Vec::with_capacity(paths.len());
         for (path, coverage) in paths.iter().zip(coverages) {
@@ -173,14 +177,17 @@ impl Window {
         let scale = 2.0 / values as f32;
         let mut loss = 0.0f64;
         // ∂L/∂(render), carried down through the layers.
-        let mut upstream: Vec<f32> = (0..3)
-            .flat_map(|c| plane(&self.target, c))
-            .zip(&render)
-            .map(|(t, r)| {
-                loss += f64::from((r - t) * (r - t));
-                scale * (r - t)
-            })
-            .collect();
+        let mut upstream = vec![0.0f32; render.len()];
+        for c in 0..3 {
+            let span = c * pixels..(c + 1) * pixels;
+            for ((up, r), t) in
+                upstream[span.clone()].iter_mut().zip(&render[span]).zip(plane(&self.target, c))
+            {
+                let difference = r - t;
+                loss += f64::from(difference * difference);
+                *up = scale * difference;
+            }
+        }
         loss /= values as f64;
         for (((path, layer), coverage), gradient) in
             paths.iter().zip(&layers).zip(coverages).zip(gradients.iter_mut()).rev()
