@@ -12,14 +12,80 @@ use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits, Rgb, R
 /// the working resolution, other formats are refused. 64 Mpx of 8-bit RGBA is 256 MiB.
 const MAX_DECODED_PIXELS: u64 = 64 << 20;
 
-/// Why an input image cannot be used; the message names the file.
+/// Why an input image cannot be used, with the file.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}: {message}")]
+#[error("{path}: {problem}")]
 pub struct DecodeError {
     /// The input file.
     pub path: PathBuf,
     /// What is wrong with it.
-    pub message: String,
+    #[source]
+    pub problem: DecodeProblem,
+}
+
+/// What is wrong with an input image. The decoders' own errors are shown, not chained: their
+/// messages already include their causes.
+#[derive(Debug, thiserror::Error)]
+pub enum DecodeProblem {
+    /// The file cannot be read.
+    #[error("{0}")]
+    Io(std::io::Error),
+    /// The first bytes are no image format this program reads.
+    #[error("not an image in a known format")]
+    UnknownFormat,
+    /// The decoder refused the file.
+    #[error("{0}")]
+    Image(image::ImageError),
+    /// The PNG stream decoder refused the file.
+    #[error("{0}")]
+    Png(png::DecodingError),
+    /// The decoded pixels could not be turned into RGB.
+    #[error("{0}")]
+    Pixels(superpixel::InputError),
+    /// The image has no pixels.
+    #[error("the image is empty ({width}×{height})")]
+    Empty {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
+    /// A JPEG cut short (refused unless truncation is allowed).
+    #[error(
+        "truncated: the JPEG ends before its end-of-image marker (--allow-truncated draws what is there)"
+    )]
+    TruncatedJpeg,
+    /// A streamed PNG ended early.
+    #[error("truncated: {rows} of {height} rows")]
+    TruncatedPng {
+        /// Rows decoded.
+        rows: u32,
+        /// Rows the header announced.
+        height: u32,
+    },
+    /// Too many pixels to decode whole, in a format that cannot be streamed.
+    #[error(
+        "the image is too large to decode ({width}×{height}); convert it to PNG, which is read row by row \
+         at any size, or scale it below {max} Mpx",
+        max = MAX_DECODED_PIXELS >> 20
+    )]
+    TooLarge {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
+    /// Too many pixels to decode whole, and interlaced, so it cannot be streamed row by row.
+    #[error("the image is too large ({width}×{height}) to decode whole, and interlaced")]
+    InterlacedTooLarge {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
+    /// A PNG whose palette the decoder did not expand.
+    #[error("unexpanded palette")]
+    UnexpandedPalette,
 }
 
 /// An input image scaled to the working resolution.
@@ -60,38 +126,37 @@ pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
 pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeError> {
     let (long_side, allow_truncated, background) =
         (options.long_side, options.allow_truncated, options.background);
-    let fail = |message: String| DecodeError { path: path.to_path_buf(), message };
+    let fail = |problem: DecodeProblem| DecodeError { path: path.to_path_buf(), problem };
     let reader = ImageReader::open(path)
         .and_then(ImageReader::with_guessed_format)
-        .map_err(|err| fail(err.to_string()))?;
-    let format = reader.format().ok_or_else(|| fail("not an image in a known format".into()))?;
-    let (width, height) = reader.into_dimensions().map_err(|err| fail(err.to_string()))?;
+        .map_err(|err| fail(DecodeProblem::Io(err)))?;
+    let format = reader.format().ok_or_else(|| fail(DecodeProblem::UnknownFormat))?;
+    let (width, height) = reader.into_dimensions().map_err(|err| fail(DecodeProblem::Image(err)))?;
     if width == 0 || height == 0 {
-        return Err(fail(format!("the image is empty ({width}×{height})")));
+        return Err(fail(DecodeProblem::Empty { width, height }));
     }
     if format == ImageFormat::Jpeg && !allow_truncated {
         // The JPEG decoder fills a missing end with grey and says nothing.
-        let bytes = std::fs::read(path).map_err(|err| fail(err.to_string()))?;
+        let bytes = std::fs::read(path).map_err(|err| fail(DecodeProblem::Io(err)))?;
         if !jpeg_is_complete(&bytes) {
-            return Err(fail(
-                "truncated: the JPEG ends before its end-of-image marker (--allow-truncated draws what is there)"
-                    .into(),
-            ));
+            return Err(fail(DecodeProblem::TruncatedJpeg));
         }
     }
     let (image, original) = if u64::from(width) * u64::from(height) <= MAX_DECODED_PIXELS {
         let mut reader = ImageReader::open(path)
             .and_then(ImageReader::with_guessed_format)
-            .map_err(|err| fail(err.to_string()))?;
+            .map_err(|err| fail(DecodeProblem::Io(err)))?;
         let mut limits = Limits::default();
         limits.max_alloc = Some(MAX_DECODED_PIXELS * 16);
         reader.limits(limits);
-        let mut decoder = reader.into_decoder().map_err(|err| fail(err.to_string()))?;
+        let mut decoder = reader.into_decoder().map_err(|err| fail(DecodeProblem::Image(err)))?;
         // A camera's EXIF orientation (JPEG, WebP, TIFF): the picture as it is shown.
         let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
-        let mut decoded = DynamicImage::from_decoder(decoder).map_err(|err| fail(err.to_string()))?;
+        let mut decoded =
+            DynamicImage::from_decoder(decoder).map_err(|err| fail(DecodeProblem::Image(err)))?;
         decoded.apply_orientation(orientation);
-        let rgb = superpixel::to_rgb_over(&decoded, background).map_err(|err| fail(err.to_string()))?;
+        let rgb =
+            superpixel::to_rgb_over(&decoded, background).map_err(|err| fail(DecodeProblem::Pixels(err)))?;
         let (width, height) = rgb.dimensions();
         let (target_width, target_height) = fit(width, height, long_side);
         let image = if (target_width, target_height) == (width, height) {
@@ -104,11 +169,7 @@ pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeErr
         let target = fit(width, height, long_side);
         (stream_png(path, (width, height), target, background).map_err(fail)?, (width, height))
     } else {
-        return Err(fail(format!(
-            "the image is too large to decode ({width}×{height}); convert it to PNG, which is read \
-             row by row at any size, or scale it below {} Mpx",
-            MAX_DECODED_PIXELS >> 20
-        )));
+        return Err(fail(DecodeProblem::TooLarge { width, height }));
     };
     Ok(Loaded { image, original })
 }
@@ -141,26 +202,26 @@ fn stream_png(
     (width, height): (u32, u32),
     (tw, th): (u32, u32),
     background: [f32; 3],
-) -> Result<Rgb32FImage, String> {
-    let file = File::open(path).map_err(|err| err.to_string())?;
+) -> Result<Rgb32FImage, DecodeProblem> {
+    let file = File::open(path).map_err(DecodeProblem::Io)?;
     let mut decoder = png::Decoder::new(BufReader::new(file));
     decoder.set_transformations(png::Transformations::normalize_to_color8());
-    let mut reader = decoder.read_info().map_err(|err| err.to_string())?;
+    let mut reader = decoder.read_info().map_err(DecodeProblem::Png)?;
     if reader.info().interlaced {
-        return Err(format!("the image is too large ({width}×{height}) to decode whole, and interlaced"));
+        return Err(DecodeProblem::InterlacedTooLarge { width, height });
     }
     let channels = match reader.output_color_type().0 {
         png::ColorType::Grayscale => 1,
         png::ColorType::GrayscaleAlpha => 2,
         png::ColorType::Rgb => 3,
         png::ColorType::Rgba => 4,
-        png::ColorType::Indexed => return Err("unexpanded palette".into()),
+        png::ColorType::Indexed => return Err(DecodeProblem::UnexpandedPalette),
     };
     let mut sums = vec![[0.0f64; 4]; (tw * th) as usize];
     let column_cell: Vec<usize> =
         (0..width).map(|x| (x as u64 * tw as u64 / width as u64) as usize).collect();
     let mut y = 0u32;
-    while let Some(row) = reader.next_row().map_err(|err| err.to_string())? {
+    while let Some(row) = reader.next_row().map_err(DecodeProblem::Png)? {
         let cell_row = (y as u64 * th as u64 / height as u64) as usize;
         for (x, pixel) in row.data().chunks_exact(channels).enumerate() {
             let (rgb, alpha) = match pixel {
@@ -180,7 +241,7 @@ fn stream_png(
         y += 1;
     }
     if y != height {
-        return Err(format!("truncated: {y} of {height} rows"));
+        return Err(DecodeProblem::TruncatedPng { rows: y, height });
     }
     Ok(Rgb32FImage::from_fn(tw, th, |x, y| {
         let cell = sums[(y * tw + x) as usize];
@@ -242,7 +303,7 @@ mod tests {
         assert!(load(&whole, 512).is_ok());
         assert!(load(&trailer, 512).is_ok());
         let Err(err) = load(&half, 512) else { panic!("a truncated JPEG was accepted") };
-        assert!(err.message.contains("truncated") && err.path == half, "{err:?}");
+        assert!(matches!(err.problem, DecodeProblem::TruncatedJpeg) && err.path == half, "{err:?}");
         let allowed = LoadOptions { long_side: 512, allow_truncated: true, ..LoadOptions::default() };
         assert_eq!(load_with(&half, &allowed).unwrap().image.dimensions(), (64, 48));
         std::fs::remove_dir_all(&dir).unwrap();

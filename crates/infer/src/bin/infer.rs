@@ -433,14 +433,14 @@ fn process(
     };
     let load = |path: &Path| load_with(path, &load_options);
     let loaded = match &job.source {
-        Source::File(path) => load(path).map_err(|err| anyhow!(err.message))?,
+        Source::File(path) => load(path).map_err(|err| anyhow::Error::new(err.problem))?,
         Source::Stdin => {
             // The decoder wants a file (it reads the header, then streams large PNGs).
             let mut bytes = Vec::new();
             std::io::stdin().read_to_end(&mut bytes).context("reading stdin")?;
             let spool = std::env::temp_dir().join(format!("supersvg-stdin-{}", std::process::id()));
             std::fs::write(&spool, &bytes).with_context(|| spool.display().to_string())?;
-            let loaded = load(&spool).map_err(|err| anyhow!(err.message));
+            let loaded = load(&spool).map_err(|err| anyhow::Error::new(err.problem));
             let _ = std::fs::remove_file(&spool);
             loaded?
         }

@@ -79,13 +79,27 @@ fn collect_files(folder: &Path, files: &mut Vec<PathBuf>) {
     }
 }
 
-fn read(path: &Path, long_side: u32) -> Result<RgbImage, String> {
+/// Why a training image was skipped.
+#[derive(Debug, thiserror::Error)]
+enum ReadError {
+    /// The file cannot be opened.
+    #[error("{0}")]
+    Io(std::io::Error),
+    /// The decoder refused it.
+    #[error("{0}")]
+    Decode(image::ImageError),
+    /// Its pixels could not be turned into RGB.
+    #[error("{0}")]
+    Pixels(superpixel::InputError),
+}
+
+fn read(path: &Path, long_side: u32) -> Result<RgbImage, ReadError> {
     let decoded = image::ImageReader::open(path)
         .and_then(|reader| reader.with_guessed_format())
-        .map_err(|err| err.to_string())?
+        .map_err(ReadError::Io)?
         .decode()
-        .map_err(|err| err.to_string())?;
-    let rgb = superpixel::to_rgb_over_white(&decoded).map_err(|err| err.to_string())?;
+        .map_err(ReadError::Decode)?;
+    let rgb = superpixel::to_rgb_over_white(&decoded).map_err(ReadError::Pixels)?;
     let rgb8 = image::DynamicImage::ImageRgb32F(rgb).to_rgb8();
     let (w, h) = rgb8.dimensions();
     if w.max(h) <= long_side {
