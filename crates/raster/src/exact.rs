@@ -25,27 +25,6 @@ pub fn render_exact(paths: &[Path], width: u32, height: u32, background: [f32; 3
     RgbImage::from_raw(width, height, rgb).expect("buffer matches the canvas")
 }
 
-/// The pixels [`render_exact`] gives inside the `size` window of a `canvas` = (width, height)
-/// image whose top-left pixel is `origin`, as RGB in [0, 1] (`[3][height][width]`, planar),
-/// for the cost of the window: paths outside it are clipped away by the rasterizer. `None` if
-/// the window is empty. A few anti-aliased edge pixels may differ by some levels (see
-/// [`paint_exact`]).
-pub fn render_exact_window(
-    paths: &[Path],
-    canvas: (u32, u32),
-    origin: (u32, u32),
-    size: (u32, u32),
-    background: [f32; 3],
-) -> Option<Vec<f32>> {
-    let mut pixmap = Pixmap::new(size.0, size.1)?;
-    pixmap.fill(opaque(background));
-    for path in paths {
-        paint_exact(&mut pixmap, path, canvas, origin);
-    }
-    let data = pixmap.data();
-    Some((0..3).flat_map(|c| data.chunks_exact(4).map(move |px| px[c] as f32 / 255.0)).collect())
-}
-
 /// Paints `path` (unit-square coordinates of a `canvas` = (width, height) image) over `pixmap`,
 /// which holds that image or the part of it whose top-left pixel is `origin`: painting a box
 /// of a canvas gives the pixels painting the whole canvas gives there, but for a few pixels of
@@ -79,7 +58,7 @@ pub fn coverage_exact(path: &Path, width: u32, height: u32) -> Option<Mask> {
 /// [`coverage_exact`] inside the `size` window of a `canvas` = (width, height) image whose
 /// top-left pixel is `origin` (placed as [`paint_exact`] places paths), for the cost of the
 /// window.
-pub fn coverage_exact_window(
+pub(crate) fn coverage_exact_window(
     path: &Path,
     canvas: (u32, u32),
     origin: (u32, u32),

@@ -22,6 +22,14 @@ pub fn cubic_point(control: &[[f32; 2]; 4], t: f32) -> [f32; 2] {
     point
 }
 
+/// The derivative `dP/dt` of the cubic with control points `control` at `t` (its tangent, as
+/// long as the curve's speed).
+pub fn cubic_derivative(control: &[[f32; 2]; 4], t: f32) -> [f32; 2] {
+    let s = 1.0 - t;
+    let [p0, p1, p2, p3] = control;
+    [0, 1].map(|d| 3.0 * (s * s * (p1[d] - p0[d]) + 2.0 * s * t * (p2[d] - p1[d]) + t * t * (p3[d] - p2[d])))
+}
+
 /// An axis-aligned rectangle in the unit square of a canvas, `[x0, x1] × [y0, y1]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
