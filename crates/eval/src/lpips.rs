@@ -13,10 +13,41 @@ pub const LPIPS_ENV: &str = "SUPERSVG_LPIPS";
 
 /// The LPIPS weights could not be read; the message names the file and what is wrong with it.
 #[derive(Debug, thiserror::Error)]
-#[error("{message}")]
-pub struct LpipsError {
-    /// What went wrong, with the file.
-    pub message: String,
+pub enum LpipsError {
+    /// A weights file could not be read.
+    #[error("{}: {source} (run scripts/fetch-lpips.sh)", path.display())]
+    Read {
+        /// `alexnet.json` or `alexnet.bin`.
+        path: PathBuf,
+        /// The reason.
+        source: std::io::Error,
+    },
+    /// The index is not JSON.
+    #[error("{}: {source}", path.display())]
+    Index {
+        /// `alexnet.json`.
+        path: PathBuf,
+        /// The parser's reason.
+        source: serde_json::Error,
+    },
+    /// The index names no such tensor, or gives it a shape of another rank.
+    #[error("{}: no {rank}-D tensor `{name}`", path.display())]
+    MissingTensor {
+        /// `alexnet.json`.
+        path: PathBuf,
+        /// The tensor.
+        name: String,
+        /// The rank it must have.
+        rank: usize,
+    },
+    /// The tensor lies past the end of the weights.
+    #[error("{}: truncated (tensor `{name}`)", path.display())]
+    Truncated {
+        /// `alexnet.bin`.
+        path: PathBuf,
+        /// The first tensor that does not fit.
+        name: String,
+    },
 }
 
 /// The LPIPS network: AlexNet's five convolutions and the five linear heads.
@@ -40,43 +71,46 @@ impl Lpips {
 
     /// Loads the converted weights from `folder`.
     pub fn load(folder: &Path, device: &Device) -> Result<Self, LpipsError> {
-        Self::read(folder, device).map_err(|message| LpipsError { message })
-    }
-
-    /// [`Lpips::load`], its messages naming the file at fault.
-    fn read(folder: &Path, device: &Device) -> Result<Self, String> {
         let index_path = folder.join("alexnet.json");
-        let index: serde_json::Value = std::fs::read_to_string(&index_path)
-            .map_err(|err| format!("{}: {err} (run scripts/fetch-lpips.sh)", index_path.display()))
-            .and_then(|text| {
-                serde_json::from_str(&text).map_err(|err| format!("{}: {err}", index_path.display()))
-            })?;
+        let read_error = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| LpipsError::Read { path, source }
+        };
+        let text = std::fs::read_to_string(&index_path).map_err(read_error(&index_path))?;
+        let index: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|source| LpipsError::Index { path: index_path.clone(), source })?;
         let blob_path = folder.join("alexnet.bin");
-        let blob = std::fs::read(&blob_path).map_err(|err| format!("{}: {err}", blob_path.display()))?;
-        let tensor = |name: &str| -> Result<(Vec<usize>, Vec<f32>), String> {
+        let blob = std::fs::read(&blob_path).map_err(read_error(&blob_path))?;
+        // The shape and values of tensor `name`, which must have `rank` dimensions.
+        let tensor = |name: &str, rank: usize| -> Result<(Vec<usize>, Vec<f32>), LpipsError> {
             let entry = &index[name];
+            let missing =
+                || LpipsError::MissingTensor { path: index_path.clone(), name: name.to_string(), rank };
             let shape: Vec<usize> = entry["shape"]
                 .as_array()
-                .ok_or_else(|| format!("{}: no tensor {name}", index_path.display()))?
+                .ok_or_else(missing)?
                 .iter()
-                .map(|d| d.as_u64().unwrap_or(0) as usize)
-                .collect();
-            let offset = entry["offset"].as_u64().unwrap_or(0) as usize;
-            let len = shape.iter().product::<usize>() * 4;
-            let bytes = blob
-                .get(offset..offset + len)
-                .ok_or_else(|| format!("{}: truncated", blob_path.display()))?;
+                .map(|d| d.as_u64().map(|d| d as usize).ok_or_else(missing))
+                .collect::<Result<_, _>>()?;
+            if shape.len() != rank {
+                return Err(missing());
+            }
+            let offset = entry["offset"].as_u64().ok_or_else(missing)? as usize;
+            let truncated = || LpipsError::Truncated { path: blob_path.clone(), name: name.to_string() };
+            let len = shape.iter().try_fold(4usize, |n, &d| n.checked_mul(d)).ok_or_else(truncated)?;
+            let bytes =
+                offset.checked_add(len).and_then(|end| blob.get(offset..end)).ok_or_else(truncated)?;
             Ok((shape, bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()))
         };
-        let four = |name: &str| -> Result<Tensor<4>, String> {
-            let (shape, values) = tensor(name)?;
-            let dims: [usize; 4] = shape.try_into().map_err(|_| format!("{name} is not 4-D"))?;
+        let four = |name: &str| -> Result<Tensor<4>, LpipsError> {
+            let (shape, values) = tensor(name, 4)?;
+            let dims = [shape[0], shape[1], shape[2], shape[3]];
             Ok(Tensor::from_data(TensorData::new(values, dims), device))
         };
         let mut convs = Vec::new();
         let mut heads = Vec::new();
         for layer in 0..LAYERS.len() {
-            let (_, bias) = tensor(&format!("conv{layer}.bias"))?;
+            let (_, bias) = tensor(&format!("conv{layer}.bias"), 1)?;
             convs.push((four(&format!("conv{layer}.weight"))?, Tensor::from_floats(bias.as_slice(), device)));
             heads.push(four(&format!("head{layer}.weight"))?);
         }
@@ -131,6 +165,32 @@ fn unit_norm(x: Tensor<4>) -> Tensor<4> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each way a weights folder can be damaged gives its own error, naming the file.
+    #[test]
+    fn damaged_weights_are_named() {
+        let dir = std::env::temp_dir().join(format!("supersvg-lpips-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let load = || Lpips::load(&dir, &Device::flex()).err().expect("damaged weights are refused");
+
+        let err = load();
+        assert!(matches!(err, LpipsError::Read { .. }) && err.to_string().contains("alexnet.json"), "{err}");
+        std::fs::write(dir.join("alexnet.json"), "{ not json").unwrap();
+        std::fs::write(dir.join("alexnet.bin"), [0u8; 8]).unwrap();
+        let err = load();
+        assert!(matches!(err, LpipsError::Index { .. }), "{err}");
+        std::fs::write(dir.join("alexnet.json"), r#"{"conv0.bias": {"shape": [2, 2], "offset": 0}}"#)
+            .unwrap();
+        let err = load();
+        assert!(matches!(err, LpipsError::MissingTensor { rank: 1, .. }), "{err}");
+        std::fs::write(dir.join("alexnet.json"), r#"{"conv0.bias": {"shape": [4], "offset": 0}}"#).unwrap();
+        let err = load();
+        assert!(
+            matches!(err, LpipsError::Truncated { .. }) && err.to_string().contains("alexnet.bin"),
+            "{err}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// Against the numpy implementation in scripts/fetch-lpips.sh, on the pair it uses.
     #[test]

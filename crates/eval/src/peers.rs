@@ -14,13 +14,21 @@ use superpixel::{SlicError, SlicOptions, slic};
 /// Why a method could not draw an image.
 #[derive(Debug, thiserror::Error)]
 pub enum PeerError {
-    /// An external program could not be started or failed.
-    #[error("{program}: {message}")]
-    Program {
+    /// An external program could not be started (not installed, not executable).
+    #[error("{program}: {source}")]
+    Start {
         /// The program.
         program: &'static str,
-        /// Its error output, or why it did not start.
-        message: String,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// An external program ran and failed.
+    #[error("{program} failed: {stderr}")]
+    Failed {
+        /// The program.
+        program: &'static str,
+        /// Its error output.
+        stderr: String,
     },
     /// A scratch file could not be written or read.
     #[error("{}: {source}", path.display())]
@@ -30,9 +38,20 @@ pub enum PeerError {
         /// What went wrong.
         source: std::io::Error,
     },
-    /// An SVG could not be written or parsed.
+    /// An SVG could not be parsed.
     #[error("SVG: {0}")]
-    Svg(String),
+    Svg(#[from] resvg::usvg::Error),
+    /// A drawing could not be written as SVG.
+    #[error("SVG: {0}")]
+    Write(#[from] raster::SvgError),
+    /// An SVG cannot be rendered at this size.
+    #[error("cannot render an SVG onto {width}×{height} pixels")]
+    Canvas {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+    },
     /// The image could not be segmented.
     #[error(transparent)]
     Segmentation(#[from] SlicError),
@@ -43,8 +62,14 @@ impl PeerError {
         move |source| Self::Io { path: path.to_path_buf(), source }
     }
 
-    fn program(program: &'static str) -> impl Fn(String) -> Self {
-        move |message| Self::Program { program, message }
+    /// The error for `program` that could not start.
+    fn start(program: &'static str) -> impl Fn(std::io::Error) -> Self {
+        move |source| Self::Start { program, source }
+    }
+
+    /// The error for `program` that exited with an error, from its output.
+    fn failed(program: &'static str, output: &std::process::Output) -> Self {
+        Self::Failed { program, stderr: String::from_utf8_lossy(&output.stderr).trim().to_string() }
     }
 }
 
@@ -59,10 +84,9 @@ pub struct Traced {
 /// Renders an SVG document with resvg onto `width × height` (the document is scaled to fit),
 /// over white.
 pub fn render_svg(svg: &str, width: u32, height: u32) -> Result<Rgb32FImage, PeerError> {
-    let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default())
-        .map_err(|err| PeerError::Svg(err.to_string()))?;
-    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height)
-        .ok_or_else(|| PeerError::Svg(format!("cannot render onto {width}×{height}")))?;
+    let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default())?;
+    let mut pixmap =
+        resvg::tiny_skia::Pixmap::new(width, height).ok_or(PeerError::Canvas { width, height })?;
     pixmap.fill(resvg::tiny_skia::Color::WHITE);
     let size = tree.size();
     let scale =
@@ -93,7 +117,7 @@ pub fn available(program: &str) -> bool {
 /// min(16, 4 + k) px and, past that, the colour gradient step to 16 + (k − 12) (fewer layers);
 /// `None` keeps vtracer's defaults (speckle 4, gradient step 16).
 pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Traced, PeerError> {
-    let failed = PeerError::program("vtracer");
+    let start = PeerError::start("vtracer");
     let run = |knob: usize| -> Result<Traced, PeerError> {
         let speckle = (4 + knob).min(16);
         let gradient = (16 + knob.saturating_sub(12)).min(255);
@@ -103,10 +127,10 @@ pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Trac
             .args(["--input", &png.to_string_lossy(), "--output", &out.to_string_lossy()])
             .args(["--filter_speckle", &speckle.to_string(), "--gradient_step", &gradient.to_string()])
             .output()
-            .map_err(|err| failed(err.to_string()))?;
+            .map_err(&start)?;
         let seconds = started.elapsed().as_secs_f64();
         if !status.status.success() {
-            return Err(failed(String::from_utf8_lossy(&status.stderr).into_owned()));
+            return Err(PeerError::failed("vtracer", &status));
         }
         let svg = std::fs::read_to_string(&out).map_err(PeerError::io(&out))?;
         Ok(Traced { svg, seconds })
@@ -128,7 +152,7 @@ pub fn potrace_colors(
     scratch: &Path,
 ) -> Result<Traced, PeerError> {
     let started = Instant::now();
-    let failed = PeerError::program("potrace");
+    let start = PeerError::start("potrace");
     let (palette, labels) = quantize(image, colors);
     let quantize_seconds = started.elapsed().as_secs_f64();
     let mut order: Vec<usize> = (0..palette.len()).collect();
@@ -157,9 +181,9 @@ pub fn potrace_colors(
                 .args(["-b", "svg", "-t", &turd.to_string(), "-o", "-"])
                 .arg(&pbm)
                 .output()
-                .map_err(|err| failed(err.to_string()))?;
+                .map_err(&start)?;
             if !out.status.success() {
-                return Err(failed(String::from_utf8_lossy(&out.stderr).into_owned()));
+                return Err(PeerError::failed("potrace", &out));
             }
             let svg = String::from_utf8_lossy(&out.stdout);
             let [r, g, b] = palette[k].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
@@ -290,7 +314,7 @@ mod tests {
         assert_eq!(image.get_pixel(15, 10).0, [1.0, 1.0, 1.0]);
         let err = render_svg("not an svg", 4, 4).err().expect("garbage is refused");
         assert!(matches!(err, PeerError::Svg(_)), "{err}");
-        assert!(matches!(render_svg(svg, 0, 4), Err(PeerError::Svg(_))));
+        assert!(matches!(render_svg(svg, 0, 4), Err(PeerError::Canvas { width: 0, height: 4 })));
     }
 
     #[test]

@@ -3,7 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
-use model::{Checkpoint, CheckpointError, CoarseModel, ModelConfig, OperatingPoint, RefineModel, Stage};
+use model::{
+    Checkpoint, CheckpointError, CoarseModel, MismatchProblem, ModelConfig, OperatingPoint, RefineModel,
+    Stage,
+};
 
 /// The trained networks, ready for inference.
 pub struct Models {
@@ -34,7 +37,7 @@ impl Models {
                 if checkpoint.model_config != config {
                     return Err(CheckpointError::Mismatch {
                         path: path.to_path_buf(),
-                        message: format!("its model configuration differs from {}'s", coarse.display()),
+                        problem: MismatchProblem::ConfigDiffers(coarse.to_path_buf()),
                     });
                 }
                 Some(checkpoint.apply(RefineModel::new(&config, device), path)?)

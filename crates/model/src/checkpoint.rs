@@ -13,12 +13,12 @@
 use std::path::{Path, PathBuf};
 
 use burn::module::Module;
-use burn::store::ModuleRecord;
+use burn::store::{ModuleRecord, RecordError};
 use burn::tensor::{Bytes, DType, Device, TensorData};
 use burn_pack::{Reader, Writer};
 
 use crate::coarse::CoarseModel;
-use crate::config::ModelConfig;
+use crate::config::{InvalidSetting, ModelConfig};
 use crate::operating::OperatingPoint;
 use crate::refine::RefineModel;
 
@@ -48,21 +48,27 @@ impl Stage {
 /// Why a checkpoint could not be written, read or applied. Every message names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum CheckpointError {
-    /// The file could not be read or written, or is not a burnpack file.
-    #[error("{path}: {message}")]
-    Io {
+    /// There is no file at the path.
+    #[error("{path}: no such file")]
+    Missing {
         /// The checkpoint file.
         path: PathBuf,
-        /// What went wrong.
-        message: String,
     },
-    /// The file is a burnpack file but not a supersvg checkpoint, or its metadata is damaged.
-    #[error("{path}: not a supersvg checkpoint ({message})")]
+    /// The file could not be written.
+    #[error("{path}: {source}")]
+    Write {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// The burnpack writer's reason.
+        source: burn_pack::Error,
+    },
+    /// The file is not a supersvg checkpoint, or its contents are damaged.
+    #[error("{path}: not a supersvg checkpoint ({problem})")]
     Format {
         /// The checkpoint file.
         path: PathBuf,
         /// What is missing or wrong.
-        message: String,
+        problem: FormatProblem,
     },
     /// The checkpoint holds the other network.
     #[error("{path}: this is a {found} checkpoint, a {expected} checkpoint is needed here")]
@@ -72,16 +78,62 @@ pub enum CheckpointError {
         /// The stage that was asked for.
         expected: &'static str,
         /// The stage the file holds.
-        found: String,
+        found: &'static str,
     },
     /// The weights do not fit the model they are loaded into.
-    #[error("{path}: the weights do not fit the model: {message}")]
+    #[error("{path}: the weights do not fit the model: {problem}")]
     Mismatch {
         /// The checkpoint file.
         path: PathBuf,
         /// Which parameter differs, and how.
-        message: String,
+        problem: MismatchProblem,
     },
+}
+
+/// What is wrong with a file that should hold a checkpoint.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatProblem {
+    /// Not a burnpack container, or a damaged one.
+    #[error(transparent)]
+    Container(#[from] burn_pack::Error),
+    /// A metadata key every checkpoint has is absent.
+    #[error("missing `{0}`")]
+    MissingKey(&'static str),
+    /// `supersvg.format` names a version this build does not read.
+    #[error("unsupported format `{0}`")]
+    UnsupportedFormat(String),
+    /// `supersvg.stage` is neither `coarse` nor `refine`.
+    #[error("unknown stage `{0}`")]
+    UnknownStage(String),
+    /// `supersvg.model` is not a model configuration.
+    #[error("model config: {0}")]
+    ModelConfig(serde_json::Error),
+    /// `supersvg.model` parses but holds a value out of range.
+    #[error("model config: {0}")]
+    InvalidModelConfig(InvalidSetting),
+    /// `supersvg.inference` is not an operating point.
+    #[error("operating point: {0}")]
+    OperatingPoint(serde_json::Error),
+    /// `supersvg.inference` parses but holds a value out of range.
+    #[error("operating point: {0}")]
+    InvalidOperatingPoint(InvalidSetting),
+    /// A tensor that is neither a model weight nor the optimizer state.
+    #[error("unexpected tensor `{0}`")]
+    UnexpectedTensor(String),
+    /// The file holds no model weights.
+    #[error("no model weights")]
+    NoWeights,
+}
+
+/// Why stored weights cannot be applied to a model.
+#[derive(Debug, thiserror::Error)]
+pub enum MismatchProblem {
+    /// A parameter is missing or has another shape (burn's record validation).
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// A refinement checkpoint made for another coarse model's configuration.
+    #[error("its model configuration differs from {}'s", .0.display())]
+    ConfigDiffers(PathBuf),
 }
 
 /// The contents of a checkpoint file.
@@ -122,20 +174,18 @@ impl Checkpoint {
     /// trainer's state stays, so a shipped model still says how long it was trained.
     pub fn for_inference(&self, dtype: DType, path: &Path) -> Result<Self, CheckpointError> {
         let model = convert(&self.model, dtype)
-            .map_err(|message| CheckpointError::Format { path: path.to_path_buf(), message })?;
+            .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
         Ok(Self { model, optimizer: None, ..self.clone() })
     }
 
     /// Writes the checkpoint to `path` atomically.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
-        let io = |message: String| CheckpointError::Io { path: path.to_path_buf(), message };
-        let rename = |prefix: &str, bytes: &Bytes| -> Result<Vec<Entry>, String> {
-            Ok(entries(bytes)?
-                .into_iter()
-                .map(|e| Entry { name: format!("{prefix}{}", e.name), ..e })
-                .collect())
-        };
-        let mut tensors = rename(MODEL_PREFIX, &self.model).map_err(io)?;
+        let write = |source: burn_pack::Error| CheckpointError::Write { path: path.to_path_buf(), source };
+        let mut tensors: Vec<Entry> = entries(&self.model)
+            .map_err(write)?
+            .into_iter()
+            .map(|e| Entry { name: format!("{MODEL_PREFIX}{}", e.name), ..e })
+            .collect();
         if let Some(optimizer) = &self.optimizer {
             let data = TensorData::new(optimizer.to_vec(), [optimizer.len()]);
             tensors.push(Entry { name: OPTIMIZER_BLOB.into(), id: None, data });
@@ -154,40 +204,44 @@ impl Checkpoint {
             writer = writer
                 .with_metadata("supersvg.inference", &serde_json::to_string(point).expect("serializes"));
         }
-        writer.write_to_file(path).map_err(|err| io(err.to_string()))
+        writer.write_to_file(path).map_err(write)
     }
 
     /// Reads a checkpoint from `path`.
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
-        let format = |message: String| CheckpointError::Format { path: path.to_path_buf(), message };
         if !path.is_file() {
-            return Err(CheckpointError::Io { path: path.to_path_buf(), message: "no such file".into() });
+            return Err(CheckpointError::Missing { path: path.to_path_buf() });
         }
-        let reader = Reader::from_file(path).map_err(|err| format(err.to_string()))?;
+        Self::read(path).map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
+    }
+
+    /// [`Checkpoint::load`] of a file that exists.
+    fn read(path: &Path) -> Result<Self, FormatProblem> {
+        let reader = Reader::from_file(path)?;
         let metadata = reader.metadata().clone();
-        let get = |key: &str| metadata.get(key).cloned().ok_or_else(|| format(format!("missing `{key}`")));
-        if get("supersvg.format")? != FORMAT {
-            return Err(format(format!("unsupported format `{}`", get("supersvg.format")?)));
+        let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
+        let format = get("supersvg.format")?;
+        if format != FORMAT {
+            return Err(FormatProblem::UnsupportedFormat(format));
         }
         let stage = match get("supersvg.stage")?.as_str() {
             "coarse" => Stage::Coarse,
             "refine" => Stage::Refine,
-            other => return Err(format(format!("unknown stage `{other}`"))),
+            other => return Err(FormatProblem::UnknownStage(other.to_string())),
         };
-        let model_config: ModelConfig = serde_json::from_str(&get("supersvg.model")?)
-            .map_err(|err| format(format!("model config: {err}")))?;
-        model_config.validate().map_err(|err| format(err.0))?;
+        let model_config: ModelConfig =
+            serde_json::from_str(&get("supersvg.model")?).map_err(FormatProblem::ModelConfig)?;
+        model_config.validate().map_err(FormatProblem::InvalidModelConfig)?;
         let inference = match metadata.get("supersvg.inference") {
             None => None,
             Some(json) => {
                 let point: OperatingPoint =
-                    serde_json::from_str(json).map_err(|err| format(format!("operating point: {err}")))?;
-                point.validate().map_err(|err| format(format!("operating point: {err}")))?;
+                    serde_json::from_str(json).map_err(FormatProblem::OperatingPoint)?;
+                point.validate().map_err(FormatProblem::InvalidOperatingPoint)?;
                 Some(point)
             }
         };
-        let tensors = reader.into_tensors().map_err(|err| format(err.to_string()))?;
-        let (model, optimizer) = split(tensors).map_err(format)?;
+        let (model, optimizer) = split(reader.into_tensors()?)?;
         Ok(Self {
             stage,
             model_config,
@@ -206,16 +260,19 @@ impl Checkpoint {
             Err(CheckpointError::WrongStage {
                 path: path.to_path_buf(),
                 expected: stage.name(),
-                found: self.stage.name().to_string(),
+                found: self.stage.name(),
             })
         }
     }
 
     /// Applies the stored weights to `model`, converting them to the model's dtype.
     pub fn apply<M: Module>(&self, model: M, path: &Path) -> Result<M, CheckpointError> {
-        let mismatch = |message: String| CheckpointError::Mismatch { path: path.to_path_buf(), message };
-        let record = ModuleRecord::from_bytes(self.model.clone()).map_err(|err| mismatch(err.to_string()))?;
-        model.try_load_record(record.cast_to_module_dtype()).map_err(|err| mismatch(err.to_string()))
+        let mismatch = |source: RecordError| CheckpointError::Mismatch {
+            path: path.to_path_buf(),
+            problem: source.into(),
+        };
+        let record = ModuleRecord::from_bytes(self.model.clone()).map_err(mismatch)?;
+        model.try_load_record(record.cast_to_module_dtype()).map_err(mismatch)
     }
 }
 
@@ -243,8 +300,8 @@ struct Entry {
 }
 
 impl Entry {
-    fn from_pack(tensor: burn_pack::Tensor) -> Result<Self, String> {
-        let (name, dtype, shape, id, bytes) = tensor.into_parts().map_err(|err| err.to_string())?;
+    fn from_pack(tensor: burn_pack::Tensor) -> Result<Self, burn_pack::Error> {
+        let (name, dtype, shape, id, bytes) = tensor.into_parts()?;
         Ok(Self { name, id, data: TensorData::from_bytes(bytes, shape, dtype) })
     }
 
@@ -255,21 +312,18 @@ impl Entry {
 }
 
 /// The tensors of a burnpack buffer.
-fn entries(bytes: &Bytes) -> Result<Vec<Entry>, String> {
-    let tensors =
-        Reader::from_bytes(bytes.clone()).and_then(Reader::into_tensors).map_err(|err| err.to_string())?;
+fn entries(bytes: &Bytes) -> Result<Vec<Entry>, burn_pack::Error> {
+    let tensors = Reader::from_bytes(bytes.clone()).and_then(Reader::into_tensors)?;
     tensors.into_iter().map(Entry::from_pack).collect()
 }
 
 /// A burnpack buffer of `entries`.
-fn pack(entries: Vec<Entry>) -> Result<Bytes, String> {
-    Writer::new(entries.into_iter().map(Entry::into_pack).collect())
-        .into_bytes()
-        .map_err(|err| err.to_string())
+fn pack(entries: Vec<Entry>) -> Result<Bytes, burn_pack::Error> {
+    Writer::new(entries.into_iter().map(Entry::into_pack).collect()).into_bytes()
 }
 
 /// `bytes` (a burnpack buffer) with every float tensor stored in `dtype`.
-fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, String> {
+fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, burn_pack::Error> {
     let entries = entries(bytes)?
         .into_iter()
         .map(|entry| {
@@ -282,7 +336,7 @@ fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, String> {
 }
 
 /// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers.
-fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), String> {
+fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), FormatProblem> {
     let (mut model, mut optimizer) = (Vec::new(), None);
     for tensor in tensors {
         let entry = Entry::from_pack(tensor)?;
@@ -291,11 +345,11 @@ fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), Stri
         } else if entry.name == OPTIMIZER_BLOB {
             optimizer = Some(entry.data.into_bytes());
         } else {
-            return Err(format!("unexpected tensor `{}`", entry.name));
+            return Err(FormatProblem::UnexpectedTensor(entry.name));
         }
     }
     if model.is_empty() {
-        return Err("no model weights".into());
+        return Err(FormatProblem::NoWeights);
     }
     Ok((pack(model)?, optimizer))
 }

@@ -16,7 +16,9 @@ mod prior;
 mod refine;
 mod vit;
 
-pub use checkpoint::{Checkpoint, CheckpointError, Stage, load_coarse, load_refine};
+pub use checkpoint::{
+    Checkpoint, CheckpointError, FormatProblem, MismatchProblem, Stage, load_coarse, load_refine,
+};
 pub use coarse::CoarseModel;
 pub use config::{InvalidSetting, ModelConfig, Preset};
 pub use decoder::PathDecoder;

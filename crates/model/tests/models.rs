@@ -4,8 +4,8 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{DType, Device, Distribution, Tensor};
 use model::{
-    Checkpoint, CheckpointError, CoarseModel, ModelConfig, Preset, RefineModel, Stage, load_coarse,
-    load_refine,
+    Checkpoint, CheckpointError, CoarseModel, FormatProblem, ModelConfig, Preset, RefineModel, Stage,
+    load_coarse, load_refine,
 };
 use raster::{Backend, PathBatch, SoftRasterOptions, render_soft};
 
@@ -167,8 +167,10 @@ fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
     let junk = dir.join("junk.ckpt");
     std::fs::write(&junk, b"not a checkpoint").unwrap();
     let err = load_coarse(&junk, &device).err().unwrap();
-    assert!(matches!(err, CheckpointError::Format { .. }), "{err}");
+    assert!(matches!(err, CheckpointError::Format { problem: FormatProblem::Container(_), .. }), "{err}");
+    assert!(err.to_string().contains("junk.ckpt"), "{err}");
     let err = load_coarse(&dir.join("missing.ckpt"), &device).err().unwrap();
+    assert!(matches!(err, CheckpointError::Missing { .. }), "{err}");
     assert!(err.to_string().contains("missing.ckpt"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

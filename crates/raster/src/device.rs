@@ -5,6 +5,7 @@
 
 use std::fmt;
 use std::str::FromStr;
+use std::sync::Arc;
 
 use burn::tensor::Device;
 
@@ -35,7 +36,7 @@ pub enum BackendError {
         "backend `wgpu` is unavailable: {0} (on a machine without a GPU, install Mesa's Vulkan \
          drivers, e.g. `apt-get install mesa-vulkan-drivers`)"
     )]
-    Unavailable(String),
+    Unavailable(Arc<dyn std::error::Error + Send + Sync>),
 }
 
 impl Backend {
@@ -81,9 +82,10 @@ impl Backend {
 #[cfg(feature = "wgpu")]
 fn wgpu_device() -> Result<Device, BackendError> {
     use std::sync::OnceLock;
-    static DEVICE: OnceLock<Result<Device, String>> = OnceLock::new();
+    // The first outcome is kept, failure included: shared, as errors are not Clone.
+    static DEVICE: OnceLock<Result<Device, Arc<dyn std::error::Error + Send + Sync>>> = OnceLock::new();
     DEVICE
-        .get_or_init(|| Device::wgpu_options().init().map_err(|err| err.to_string()))
+        .get_or_init(|| Device::wgpu_options().init().map_err(|err| Arc::new(err) as _))
         .clone()
         .map_err(BackendError::Unavailable)
 }

@@ -341,22 +341,42 @@ impl RasterConfig {
     }
 }
 
-/// A config file that could not be used; the message names the file and the key.
+/// A config file that could not be used; the message names the file and, where it is one key's
+/// fault, the key.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}: {message}")]
+#[error("{path}: {problem}")]
 pub struct ConfigError {
     /// The config file.
     pub path: PathBuf,
     /// What is wrong.
-    pub message: String,
+    pub problem: ConfigProblem,
+}
+
+/// What is wrong with a config file.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigProblem {
+    /// The file could not be read.
+    #[error(transparent)]
+    Read(#[from] std::io::Error),
+    /// Not TOML, an unknown key, or a value of the wrong type (toml names the line).
+    #[error(transparent)]
+    Parse(#[from] toml::de::Error),
+    /// A value out of its range.
+    #[error(transparent)]
+    Invalid(#[from] InvalidSetting),
 }
 
 /// Reads and validates a config file.
 pub fn load<T: for<'de> Deserialize<'de> + Validate>(path: &Path) -> Result<T, ConfigError> {
-    let error = |message: String| ConfigError { path: path.to_path_buf(), message };
-    let text = std::fs::read_to_string(path).map_err(|err| error(err.to_string()))?;
-    let config: T = toml::from_str(&text).map_err(|err| error(err.to_string()))?;
-    config.validate().map_err(|err| error(err.0))?;
+    let error = |problem| ConfigError { path: path.to_path_buf(), problem };
+    let text = std::fs::read_to_string(path).map_err(|err| error(err.into()))?;
+    parse(&text).map_err(error)
+}
+
+/// Parses and validates a config file's text.
+fn parse<T: for<'de> Deserialize<'de> + Validate>(text: &str) -> Result<T, ConfigProblem> {
+    let config: T = toml::from_str(text)?;
+    config.validate()?;
     Ok(config)
 }
 
@@ -467,10 +487,9 @@ fn check(ok: bool, message: &str) -> Result<(), InvalidSetting> {
 mod tests {
     use super::*;
 
-    fn parse<T: for<'de> Deserialize<'de> + Validate>(text: &str) -> Result<T, String> {
-        let config: T = toml::from_str(text).map_err(|err| err.to_string())?;
-        config.validate().map_err(|err| err.0)?;
-        Ok(config)
+    /// The message of the error [`parse`] gives for `text`.
+    fn problem<T: for<'de> Deserialize<'de> + Validate + std::fmt::Debug>(text: &str) -> String {
+        parse::<T>(text).unwrap_err().to_string()
     }
 
     #[test]
@@ -504,15 +523,15 @@ mod tests {
 
     #[test]
     fn unknown_keys_and_bad_values_are_named() {
-        let err = parse::<CoarseConfig>("[model]\nembed = 3\n[data]\n[train]\n").unwrap_err();
+        let err = problem::<CoarseConfig>("[model]\nembed = 3\n[data]\n[train]\n");
         assert!(err.contains("embed"), "{err}");
-        let err = parse::<CoarseConfig>("[data]\nimagez = \"x\"\n[train]\n").unwrap_err();
+        let err = problem::<CoarseConfig>("[data]\nimagez = \"x\"\n[train]\n");
         assert!(err.contains("imagez"), "{err}");
-        let err = parse::<CoarseConfig>("[data]\n[train]\nbatch_size = 0\n").unwrap_err();
+        let err = problem::<CoarseConfig>("[data]\n[train]\nbatch_size = 0\n");
         assert_eq!(err, "train.batch_size must be positive");
-        let err = parse::<RefineConfig>("[data]\n[train]\n[loss]\nguidance = \"dtw\"\n").unwrap_err();
+        let err = problem::<RefineConfig>("[data]\n[train]\n[loss]\nguidance = \"dtw\"\n");
         assert!(err.contains("dtw"), "{err}");
-        let err = parse::<CoarseConfig>("[model]\npatch_size = 7\n[data]\n[train]\n").unwrap_err();
+        let err = problem::<CoarseConfig>("[model]\npatch_size = 7\n[data]\n[train]\n");
         assert!(err.contains("model.input_size"), "{err}");
     }
 

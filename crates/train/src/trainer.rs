@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use burn::module::Module;
 use burn::optim::{GradientsParams, ModuleOptimizer};
+use burn::store::RecordError;
 use burn::tensor::{Bytes, DType, Device};
 use model::{Checkpoint, CheckpointError, CropBatch, ModelConfig};
 use raster::paint_soft;
@@ -32,20 +33,36 @@ pub enum TrainError {
     #[error(transparent)]
     Data(#[from] DataError),
     /// The output folder or a log could not be written.
-    #[error("{path}: {message}")]
+    #[error("{path}: {source}")]
     Io {
         /// The file or folder.
         path: PathBuf,
         /// What went wrong.
-        message: String,
+        source: std::io::Error,
+    },
+    /// A preview image could not be written.
+    #[error("{path}: {source}")]
+    Preview {
+        /// The preview file.
+        path: PathBuf,
+        /// The encoder's reason.
+        source: image::ImageError,
+    },
+    /// The optimizer state could not be serialized for a checkpoint.
+    #[error("{path}: optimizer state: {source}")]
+    Optimizer {
+        /// The checkpoint being written.
+        path: PathBuf,
+        /// burn's reason.
+        source: RecordError,
     },
     /// `--resume` found no usable training state.
-    #[error("{path}: cannot resume: {message}")]
+    #[error("{path}: cannot resume: {problem}")]
     Resume {
         /// The checkpoint.
         path: PathBuf,
         /// What is missing.
-        message: String,
+        problem: ResumeProblem,
     },
     /// A loss term became NaN or infinite; the last good checkpoint is kept.
     #[error(
@@ -69,6 +86,23 @@ pub enum TrainError {
         /// The checkpoint written.
         checkpoint: PathBuf,
     },
+}
+
+/// Why a checkpoint cannot continue a training run.
+#[derive(Debug, thiserror::Error)]
+pub enum ResumeProblem {
+    /// An inference checkpoint (exported): it has no optimizer state.
+    #[error("it holds no optimizer state")]
+    NoOptimizerState,
+    /// It has no trainer state (step, schedules).
+    #[error("it holds no training state")]
+    NoTrainingState,
+    /// The trainer state does not parse.
+    #[error("damaged training state: {0}")]
+    TrainingState(serde_json::Error),
+    /// The optimizer state does not fit this optimizer.
+    #[error("optimizer state: {0}")]
+    Optimizer(RecordError),
 }
 
 /// The trainer's own state, stored in checkpoints as JSON.
@@ -134,13 +168,13 @@ pub fn resume_from<O: Objective>(dir: &Path) -> Result<(Checkpoint, Bytes, Train
     let path = checkpoint_path::<O>(dir);
     let checkpoint = Checkpoint::load(&path)?;
     checkpoint.expect_stage(O::STAGE, &path)?;
-    let resume_error = |message: &str| TrainError::Resume { path: path.clone(), message: message.into() };
+    let resume_error = |problem| TrainError::Resume { path: path.clone(), problem };
     let optimizer =
-        checkpoint.optimizer.clone().ok_or_else(|| resume_error("it holds no optimizer state"))?;
+        checkpoint.optimizer.clone().ok_or_else(|| resume_error(ResumeProblem::NoOptimizerState))?;
     let training =
-        checkpoint.training.as_deref().ok_or_else(|| resume_error("it holds no training state"))?;
-    let state: TrainingState = serde_json::from_str(training)
-        .map_err(|err| resume_error(&format!("damaged training state: {err}")))?;
+        checkpoint.training.as_deref().ok_or_else(|| resume_error(ResumeProblem::NoTrainingState))?;
+    let state: TrainingState =
+        serde_json::from_str(training).map_err(|err| resume_error(ResumeProblem::TrainingState(err)))?;
     Ok((checkpoint, optimizer, state))
 }
 
@@ -168,20 +202,21 @@ pub fn train<O: Objective>(
     config_json: serde_json::Value,
     run: &Run,
 ) -> Result<Summary, TrainError> {
-    let io = |path: &Path, err: &dyn std::fmt::Display| TrainError::Io {
-        path: path.to_path_buf(),
-        message: err.to_string(),
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| TrainError::Io { path, source }
     };
-    std::fs::create_dir_all(&run.dir).map_err(|err| io(&run.dir, &err))?;
+    std::fs::create_dir_all(&run.dir).map_err(io(&run.dir))?;
     catch_interrupts();
     let checkpoint = checkpoint_path::<O>(&run.dir);
     let Start { mut model, model_config, resumed } = start;
     let mut optimizer = adamw(optim);
     let (first_step, mut seconds, mut recent) = match resumed {
         Some((bytes, state)) => {
-            optimizer = optimizer
-                .from_bytes(bytes)
-                .map_err(|err| TrainError::Resume { path: checkpoint.clone(), message: err.to_string() })?;
+            optimizer = optimizer.from_bytes(bytes).map_err(|err| TrainError::Resume {
+                path: checkpoint.clone(),
+                problem: ResumeProblem::Optimizer(err),
+            })?;
             (state.step, state.seconds, state.recent)
         }
         None => (0, 0.0, BTreeMap::new()),
@@ -193,7 +228,11 @@ pub fn train<O: Objective>(
                 recent: &BTreeMap<String, f32>|
      -> Result<(), TrainError> {
         let mut file = Checkpoint::of_model(O::STAGE, &model_config, model, DType::F32);
-        file.optimizer = Some(optimizer.into_bytes().map_err(|err| io(&checkpoint, &err))?);
+        file.optimizer = Some(
+            optimizer
+                .into_bytes()
+                .map_err(|source| TrainError::Optimizer { path: checkpoint.clone(), source })?,
+        );
         let state = TrainingState { step, seconds, config: config_json.clone(), recent: recent.clone() };
         file.training = Some(serde_json::to_string(&state).expect("training state serializes"));
         file.save(&checkpoint)?;
@@ -202,7 +241,7 @@ pub fn train<O: Objective>(
 
     let source = Arc::new(DataSource::new(data, &model_config, optim.batch_size, optim.seed)?);
     let mut loader = Loader::start(source, first_step as u64, data.workers, data.prefetch);
-    let mut reporter = Reporter::open(&run.dir, first_step, optim.steps).map_err(|err| io(&run.dir, &err))?;
+    let mut reporter = Reporter::open(&run.dir, first_step, optim.steps).map_err(io(&run.dir))?;
     if first_step > 0 {
         reporter.say(&format!("resuming from {} at step {first_step}", checkpoint.display()));
     }
@@ -251,7 +290,7 @@ pub fn train<O: Objective>(
                 data_seconds,
                 samples_per_second: optim.batch_size as f64 / step_seconds,
             };
-            reporter.record(&record).map_err(|err| io(&run.dir, &err))?;
+            reporter.record(&record).map_err(io(&run.dir))?;
         }
         if let Some((validation, every)) = &run.validation {
             if done % every == 0 || done == optim.steps {
@@ -277,22 +316,22 @@ fn validate<O: Objective>(
     reporter: &mut Reporter,
     dir: &Path,
 ) -> Result<(), TrainError> {
-    let io = |path: &Path, err: &dyn std::fmt::Display| TrainError::Io {
-        path: path.to_path_buf(),
-        message: err.to_string(),
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| TrainError::Io { path, source }
     };
     let device = device.clone().inner();
     let crops = CropBatch::new(validation.crops(), &device);
     let paths = objective.draw(&model.valid(), &crops);
     let scores = validation.score(&paths.to_scenes());
-    reporter.validation(step, &scores).map_err(|err| io(dir, &err))?;
+    reporter.validation(step, &scores).map_err(io(dir))?;
     let [batch, _, size, _] = crops.pixels.dims();
     let flat = crops.mean_colours().expand([batch, 3, size, size]);
     let render: Vec<f32> =
         paint_soft(flat, &paths, objective.raster()).try_to_vec_as().expect("render is readable");
     let path = dir.join(format!("preview-{step:06}.png"));
     write_preview(&path, validation.crops(), &render, &paths, &validation.mean_colours(), 8)
-        .map_err(|err| io(&path, &err))
+        .map_err(|source| TrainError::Preview { path: path.clone(), source })
 }
 
 /// Builds a model of `config` (its initialization drawn from `seed` on `device`), or takes the

@@ -110,7 +110,7 @@ impl Validation {
             let count = count.clamp(1, (scene.width() * scene.height()) as usize);
             let options = OperatingPoint::default().segment_options(data.compactness);
             let segmentation = segment(&scene, count, &options)
-                .map_err(|err| DataError::new(format!("validation: {}: {err}", folder.display())))?;
+                .map_err(|source| DataError::ValidationSegment { path: folder.clone(), source })?;
             let usable: Vec<u32> = (0..segmentation.regions.len() as u32)
                 .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
                 .collect();

@@ -24,6 +24,7 @@ fn fails(program: &str, args: &[&str]) -> String {
 
 const COARSE: &str = env!("CARGO_BIN_EXE_train-coarse");
 const REFINE: &str = env!("CARGO_BIN_EXE_train-refine");
+const EXPORT: &str = env!("CARGO_BIN_EXE_export-model");
 
 #[test]
 fn bad_configs_are_refused_by_name() {
@@ -111,5 +112,26 @@ fn refinement_needs_a_coarse_checkpoint() {
         ],
     );
     assert!(err.contains("coarse.ckpt"), "{err}");
+
+    // Resuming from an exported (inference) checkpoint: its optimizer state is gone.
+    let exported_dir = dir.join("exported");
+    std::fs::create_dir_all(&exported_dir).unwrap();
+    let exported = exported_dir.join("coarse.ckpt");
+    let ok = Command::new(EXPORT)
+        .args([coarse_ckpt.to_str().unwrap(), exported.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let err = fails(
+        COARSE,
+        &[
+            "--config",
+            smoke("smoke-coarse.toml").to_str().unwrap(),
+            "--out",
+            exported_dir.to_str().unwrap(),
+            "--resume",
+        ],
+    );
+    assert!(err.contains("cannot resume") && err.contains("no optimizer state"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

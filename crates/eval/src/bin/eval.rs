@@ -196,8 +196,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             })
         };
         let drawing = |scene: &Scene| -> Result<Drawn, PeerError> {
-            let svg =
-                to_svg(&scene.scene(), width, height, None).map_err(|e| PeerError::Svg(e.to_string()))?;
+            let svg = to_svg(&scene.scene(), width, height, None)?;
             rendered(&svg)
         };
         let anatomy = |scene: &Scene| Anatomy {
@@ -222,8 +221,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             }
             if wanted("fallback") {
                 let drawn = fallback_mosaic(image, budget).and_then(|(paths, seconds)| {
-                    let svg =
-                        to_svg(&paths, width, height, None).map_err(|e| PeerError::Svg(e.to_string()))?;
+                    let svg = to_svg(&paths, width, height, None)?;
                     Ok((rendered(&svg)?, seconds))
                 });
                 let seconds = drawn.as_ref().map_or(0.0, |(_, s)| *s);

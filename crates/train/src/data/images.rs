@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::source::DataError;
 
-const EXTENSIONS: [&str; 9] = ["png", "jpg", "jpeg", "webp", "gif", "bmp", "tif", "tiff", "tga"];
+pub(crate) const EXTENSIONS: [&str; 9] = ["png", "jpg", "jpeg", "webp", "gif", "bmp", "tif", "tiff", "tga"];
 
 /// Every readable image under a folder, scaled down to a long side, as 8-bit RGB over white.
 pub struct ImageSet {
@@ -21,7 +21,7 @@ impl ImageSet {
     /// single readable image is an error.
     pub fn load(folder: &Path, long_side: u32) -> Result<Self, DataError> {
         if !folder.is_dir() {
-            return Err(DataError::new(format!("data.images: {} is not a folder", folder.display())));
+            return Err(DataError::NotAFolder(folder.to_path_buf()));
         }
         let mut files = Vec::new();
         collect_files(folder, &mut files);
@@ -38,11 +38,7 @@ impl ImageSet {
             .collect();
         let images: Vec<RgbImage> = decoded.into_iter().flatten().collect();
         if images.is_empty() {
-            return Err(DataError::new(format!(
-                "data.images: no readable image in {} (looked for {})",
-                folder.display(),
-                EXTENSIONS.join(", ")
-            )));
+            return Err(DataError::NoImages(folder.to_path_buf()));
         }
         Ok(Self { images })
     }
@@ -131,6 +127,6 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
 
         let err = ImageSet::load(&dir, 64).err().unwrap();
-        assert!(err.to_string().contains("is not a folder"), "{err}");
+        assert!(matches!(err, DataError::NotAFolder(_)) && err.to_string().contains("not a folder"), "{err}");
     }
 }

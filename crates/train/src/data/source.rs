@@ -1,5 +1,7 @@
 //! What a training batch is, and how batch `i` is made from the seed alone.
 
+use std::path::PathBuf;
+
 use burn::tensor::Device;
 use image::Rgb32FImage;
 use model::{CropBatch, ModelConfig};
@@ -8,17 +10,28 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use superpixel::{RegionCrop, Segmentation, SlicError, segment};
 
-use super::images::ImageSet;
+use super::images::{EXTENSIONS, ImageSet};
 use super::synthetic::synthetic_scene;
 use crate::config::DataConfig;
 
-/// A data problem: a setting that cannot be used (missing folder, no images…), or a batch that
-/// could not be made.
+/// A data problem: a folder that cannot be used (missing, no images…), or a batch that could not
+/// be made.
 #[derive(Debug, thiserror::Error)]
 pub enum DataError {
-    /// A setting cannot be used; the message names it.
-    #[error("{0}")]
-    Setting(String),
+    /// An image folder (`data.images`, `validation.images`) is not a folder.
+    #[error("{}: not a folder", .0.display())]
+    NotAFolder(PathBuf),
+    /// An image folder holds no image that decodes.
+    #[error("{}: no readable image (looked for {})", .0.display(), EXTENSIONS.join(", "))]
+    NoImages(PathBuf),
+    /// A validation image could not be segmented.
+    #[error("validation: {}: {source}", path.display())]
+    ValidationSegment {
+        /// The validation folder.
+        path: PathBuf,
+        /// SLIC's reason.
+        source: SlicError,
+    },
     /// A scene of batch `index` could not be segmented (an option out of SLIC's range).
     #[error("batch {index}: a scene could not be segmented: {source}")]
     Segment {
@@ -30,12 +43,6 @@ pub enum DataError {
     /// A data thread stopped before delivering its batches (it panicked).
     #[error("the data thread preparing batch {0} stopped")]
     WorkerStopped(u64),
-}
-
-impl DataError {
-    pub(crate) fn new(message: String) -> Self {
-        Self::Setting(message)
-    }
 }
 
 /// Region crops of one step, on the CPU.
