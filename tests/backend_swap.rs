@@ -86,15 +86,11 @@ fn training_steps_agree_across_backends() {
         let device = backend.autodiff_device().unwrap_or_else(|err| panic!("{err}"));
         let load_coarse =
             || CoarseModel::new(&model_config, &device).load_record(coarse.clone().into_record());
-        let coarse_objective =
-            CoarseObjective { loss: coarse_config.loss.clone(), raster: coarse_config.raster.options() };
+        let coarse_objective = CoarseObjective::new(&coarse_config);
         let coarse_step = step(&coarse_objective, load_coarse(), &batch, &device);
         let refine_objective = RefineObjective {
-            teacher: load_coarse().freeze(),
-            input: model_config.input,
-            loss: refine_config.loss.clone(),
-            raster: refine_config.raster.options(),
             seed: 5,
+            ..RefineObjective::new(&refine_config, load_coarse(), model_config.input)
         };
         let student = RefineModel::new(&model_config, &device).load_record(refine.clone().into_record());
         let refine_step = step(&refine_objective, student, &batch, &device);

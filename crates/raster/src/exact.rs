@@ -64,7 +64,7 @@ pub(crate) fn coverage_exact_window(
     origin: (u32, u32),
     size: (u32, u32),
 ) -> Option<Mask> {
-    let outline = skia_outline(path)?;
+    let outline = outline(path)?;
     let mut mask = Mask::new(size.0, size.1)?;
     mask.fill_path(&outline, FillRule::Winding, true, canvas_transform(canvas, origin));
     Some(mask)
@@ -73,8 +73,17 @@ pub(crate) fn coverage_exact_window(
 /// The closed outline of a drawable path in unit-square coordinates (scale it to the canvas with
 /// a transform), or `None` for an invisible or non-finite one.
 pub fn skia_outline(path: &Path) -> Option<tiny_skia::Path> {
+    if !path.alpha.is_finite() || path.alpha <= 0.0 {
+        return None;
+    }
+    outline(path)
+}
+
+/// [`skia_outline`] whatever the path's opacity: where its coverage is, which the gradient of
+/// its opacity needs even while it is invisible.
+fn outline(path: &Path) -> Option<tiny_skia::Path> {
     let finite = path.points.iter().flatten().chain(&path.color).all(|v| v.is_finite());
-    if !finite || !path.alpha.is_finite() || path.alpha <= 0.0 {
+    if !finite {
         return None;
     }
     let mut builder = PathBuilder::new();

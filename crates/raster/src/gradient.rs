@@ -47,21 +47,16 @@ impl Window {
     /// `paths` (coordinates in the window's unit square) painted exactly, in order, over the
     /// canvas: planar RGB like the canvas.
     pub fn render(&self, paths: &[Path]) -> Vec<f32> {
-        let coverages = self.coverages(paths);
-        let bands: Vec<Band> =
-            self.bands().into_par_iter().map(|rows| self.band(paths, &coverages, rows, false)).collect();
-        let pixels = self.width as usize * self.height as usize;
-        let mut render = vec![0.0; 3 * pixels];
-        let mut start = 0;
-        for band in bands {
-            let len = band.render.len() / 3;
-            for c in 0..3 {
-                render[c * pixels + start..c * pixels + start + len]
-                    .copy_from_slice(&band.render[c * len..(c + 1) * len]);
-            }
-            start += len;
-        }
-        render
+        self.forward(paths, RGB)
+    }
+
+    /// [`Self::render`], and the union of the paths' coverages (`1 − Π(1 − coverageᵢ)`,
+    /// `[height][width]`, invisible paths included, as the soft rasterizer's union): what a
+    /// loss on where paths reach (outside a region's mask) reads.
+    pub fn render_with_union(&self, paths: &[Path]) -> (Vec<f32>, Vec<f32>) {
+        let mut render = self.forward(paths, RGB.start..UNION.end);
+        let union = render.split_off(3 * self.width as usize * self.height as usize);
+        (render, union)
     }
 
     /// The mean squared error of [`Self::render`] against the target, over pixels and channels.
@@ -77,10 +72,63 @@ impl Window {
     /// gradient. Each path costs the pixels of its own box, not of the window; bands of rows
     /// run in parallel.
     pub fn l2_gradient(&self, paths: &[Path]) -> (f64, Vec<[f32; PARAMS]>) {
+        self.backward(paths, RGB, &Seed::L2)
+    }
+
+    /// The gradient by each path's parameters (as [`Self::l2_gradient`]'s) of any loss of the
+    /// render and of the union, given the loss's derivative by each value of
+    /// [`Self::render_with_union`]'s two buffers (`None`: the loss does not read it). The
+    /// window's target is not used.
+    ///
+    /// # Panics
+    /// If a buffer does not hold one value per value of the render (`3 × width × height`) or
+    /// of the union (`width × height`).
+    pub fn gradient(
+        &self,
+        paths: &[Path],
+        by_render: Option<&[f32]>,
+        by_union: Option<&[f32]>,
+    ) -> Vec<[f32; PARAMS]> {
+        let pixels = self.width as usize * self.height as usize;
+        assert!(by_render.is_none_or(|g| g.len() == 3 * pixels), "one derivative per render value");
+        assert!(by_union.is_none_or(|g| g.len() == pixels), "one derivative per union value");
+        let planes = match (by_render, by_union) {
+            (Some(_), Some(_)) => RGB.start..UNION.end,
+            (None, Some(_)) => UNION,
+            (_, None) => RGB,
+        };
+        self.backward(paths, planes, &Seed::Given { by_render, by_union }).1
+    }
+
+    /// The planes `planes` of the render, one after the other.
+    fn forward(&self, paths: &[Path], planes: Range<usize>) -> Vec<f32> {
+        let coverages = self.coverages(paths);
+        let bands: Vec<Band> = self
+            .bands()
+            .into_par_iter()
+            .map(|rows| self.band(paths, &coverages, rows, planes.clone(), None))
+            .collect();
+        let pixels = self.width as usize * self.height as usize;
+        let mut render = vec![0.0; planes.len() * pixels];
+        let mut start = 0;
+        for band in bands {
+            let len = band.render.len() / planes.len();
+            for k in 0..planes.len() {
+                render[k * pixels + start..k * pixels + start + len]
+                    .copy_from_slice(&band.render[k * len..(k + 1) * len]);
+            }
+            start += len;
+        }
+        render
+    }
+
+    /// The loss (for [`Seed::L2`]) and the gradient of the loss `seed` stands for, over the
+    /// planes `planes`.
+    fn backward(&self, paths: &[Path], planes: Range<usize>, seed: &Seed) -> (f64, Vec<[f32; PARAMS]>) {
         let coverages = self.coverages(paths);
         self.bands()
             .into_par_iter()
-            .map(|rows| self.band(paths, &coverages, rows, true))
+            .map(|rows| self.band(paths, &coverages, rows, planes.clone(), Some(seed)))
             .map(|band| (band.loss, band.gradients))
             .reduce(
                 || (0.0, vec![[0.0; PARAMS]; paths.len()]),
@@ -116,27 +164,38 @@ impl Window {
             .collect()
     }
 
-    /// The rows `rows` of the render and, with `backward`, their share of the loss and of the
-    /// gradient.
+    /// The rows `rows` of the planes `planes` of the render (RGB: the canvas, then each path in
+    /// its colour; union: nothing, then each path in white) and, with a `seed`, their share of
+    /// the loss and of the gradient.
     fn band<'a>(
         &'a self,
         paths: &[Path],
         coverages: &[Option<Coverage>],
         rows: Range<usize>,
-        backward: bool,
+        planes: Range<usize>,
+        seed: Option<&Seed<'a>>,
     ) -> Band {
         let width = self.width as usize;
-        let count = 3 * self.width as usize * self.height as usize;
+        let window_pixels = width * self.height as usize;
         let (pixels, offset) = (rows.len() * width, rows.start * width);
-        // The band's rows of channel `c` of a planar window buffer.
+        // The band's rows of plane `c` of a planar window buffer.
         let plane = |buffer: &'a [f32], c: usize| -> &'a [f32] {
-            let start = c * width * self.height as usize + offset;
+            let start = c * window_pixels + offset;
             &buffer[start..start + pixels]
         };
-        let mut render: Vec<f32> = Vec::with_capacity(3 * pixels);
-        for c in 0..3 {
-            render.extend_from_slice(plane(&self.canvas, c));
+        let mut render: Vec<f32> = Vec::with_capacity(planes.len() * pixels);
+        for c in planes.clone() {
+            if c < RGB.end {
+                render.extend_from_slice(plane(&self.canvas, c));
+            } else {
+                render.resize(render.len() + pixels, 0.0);
+            }
         }
+        // The value plane `c` of `path` paints, and with what opacity.
+        let paint = |path: &Path, c: usize| {
+            if c < RGB.end { (path.color[c].clamp(0.0, 1.0), path.alpha.clamp(0.0, 1.0)) } else { (1.0, 1.0) }
+        };
+        let backward = seed.is_some();
         // The rows of each path's box inside the band, and the band's pixels under it there.
         let mut layers: Vec<Option<(Range<usize>, Vec<f32>)>> = Vec::with_capacity(paths.len());
         for (path, coverage) in paths.iter().zip(coverages) {
@@ -151,17 +210,16 @@ impl Window {
             }
             let box_width = x1 - x0;
             let span = (last - first) * box_width;
-            let mut below = if backward { vec![0.0; 3 * span] } else { Vec::new() };
-            let alpha = path.alpha.clamp(0.0, 1.0);
+            let mut below = if backward { vec![0.0; planes.len() * span] } else { Vec::new() };
             for y in first..last {
                 let (at, local, covered) =
                     ((y - rows.start) * width + x0, (y - first) * box_width, (y - y0) * box_width);
                 let covers = &covers[covered..covered + box_width];
-                for c in 0..3 {
-                    let color = path.color[c].clamp(0.0, 1.0);
-                    let values = &mut render[c * pixels + at..c * pixels + at + box_width];
+                for (k, c) in planes.clone().enumerate() {
+                    let (color, alpha) = paint(path, c);
+                    let values = &mut render[k * pixels + at..k * pixels + at + box_width];
                     if backward {
-                        below[c * span + local..c * span + local + box_width].copy_from_slice(values);
+                        below[k * span + local..k * span + local + box_width].copy_from_slice(values);
                     }
                     for (value, &cover) in values.iter_mut().zip(covers) {
                         *value += alpha * cover * (color - *value);
@@ -170,25 +228,39 @@ impl Window {
             }
             layers.push(Some((first..last, below)));
         }
-        let mut gradients = vec![[0.0; PARAMS]; if backward { paths.len() } else { 0 }];
-        if !backward {
-            return Band { render, loss: 0.0, gradients };
-        }
-        let scale = 2.0 / count as f32;
+        let Some(seed) = seed else {
+            return Band { render, loss: 0.0, gradients: Vec::new() };
+        };
         let mut loss = 0.0f64;
         // ∂L/∂(render), carried down through the layers.
         let mut upstream = vec![0.0f32; render.len()];
-        for c in 0..3 {
-            let span = c * pixels..(c + 1) * pixels;
-            for ((up, r), t) in
-                upstream[span.clone()].iter_mut().zip(&render[span]).zip(plane(&self.target, c))
-            {
-                let difference = r - t;
-                loss += f64::from(difference * difference);
-                *up = scale * difference;
+        for (k, c) in planes.clone().enumerate() {
+            let ups = &mut upstream[k * pixels..(k + 1) * pixels];
+            match seed {
+                Seed::L2 => {
+                    let scale = 2.0 / (3 * window_pixels) as f32;
+                    for ((up, r), t) in
+                        ups.iter_mut().zip(&render[k * pixels..(k + 1) * pixels]).zip(plane(&self.target, c))
+                    {
+                        let difference = r - t;
+                        loss += f64::from(difference * difference);
+                        *up = scale * difference;
+                    }
+                }
+                Seed::Given { by_render, by_union } => {
+                    let given = if c < RGB.end {
+                        by_render.map(|g| plane(g, c))
+                    } else {
+                        by_union.map(|g| plane(g, 0))
+                    };
+                    if let Some(given) = given {
+                        ups.copy_from_slice(given);
+                    }
+                }
             }
         }
-        loss /= count as f64;
+        loss /= (3 * window_pixels) as f64;
+        let mut gradients = vec![[0.0; PARAMS]; paths.len()];
         for (((path, layer), coverage), gradient) in
             paths.iter().zip(&layers).zip(coverages).zip(gradients.iter_mut()).rev()
         {
@@ -199,8 +271,6 @@ impl Window {
             };
             let box_width = x1 - x0;
             let span = band_rows.len() * box_width;
-            let alpha = path.alpha.clamp(0.0, 1.0);
-            let color = path.color.map(|c| c.clamp(0.0, 1.0));
             let (mut d_color, mut d_alpha) = ([0.0f32; 3], 0.0f32);
             let mut by_coverage = vec![0.0f32; span];
             for y in band_rows.clone() {
@@ -208,9 +278,10 @@ impl Window {
                 let covered = (y - y0) * box_width;
                 let covers = &covers[covered..covered + box_width];
                 let by = &mut by_coverage[local..local + box_width];
-                for (c, &color) in color.iter().enumerate() {
-                    let ups = &mut upstream[c * pixels + at..c * pixels + at + box_width];
-                    let unders = &below[c * span + local..c * span + local + box_width];
+                for (k, c) in planes.clone().enumerate() {
+                    let (color, alpha) = paint(path, c);
+                    let ups = &mut upstream[k * pixels + at..k * pixels + at + box_width];
+                    let unders = &below[k * span + local..k * span + local + box_width];
                     let (mut sum_color, mut sum_alpha) = (0.0, 0.0);
                     for (((up, &under), &cover), by) in
                         ups.iter_mut().zip(unders).zip(covers).zip(by.iter_mut())
@@ -221,8 +292,10 @@ impl Window {
                         sum_alpha += u * cover * difference;
                         *up = u * (1.0 - alpha * cover);
                     }
-                    d_color[c] += alpha * sum_color;
-                    d_alpha += sum_alpha;
+                    if c < RGB.end {
+                        d_color[c] += alpha * sum_color;
+                        d_alpha += sum_alpha;
+                    }
                 }
             }
             let cells = [*x0, band_rows.start, *x1, band_rows.end];
@@ -281,6 +354,24 @@ impl Window {
         }
         gradient
     }
+}
+
+/// The render's colour planes.
+const RGB: Range<usize> = 0..3;
+/// The plane of the union of the paths' coverages, after the colours.
+const UNION: Range<usize> = 3..4;
+
+/// Where a backward pass starts: the derivative of the loss by each value of the render.
+enum Seed<'a> {
+    /// The mean squared error against the window's target (RGB planes).
+    L2,
+    /// Derivatives computed elsewhere, planar like the render's buffers.
+    Given {
+        /// By each RGB value (`3 × height × width`), if the loss reads the colours.
+        by_render: Option<&'a [f32]>,
+        /// By each value of the union (`height × width`), if the loss reads it.
+        by_union: Option<&'a [f32]>,
+    },
 }
 
 /// A drawable path's pixel box `[x0, y0, x1, y1]` in the window and its anti-aliased coverage
@@ -429,8 +520,11 @@ mod tests {
         assert!(psnr >= 35.0, "{psnr:.1} dB");
     }
 
+    /// An invisible path draws nothing and moves nothing, but its opacity has a gradient (a
+    /// straight-through visibility must be able to turn it back on); a path with a non-finite
+    /// point gets no gradient at all.
     #[test]
-    fn undrawable_paths_get_no_gradient() {
+    fn hidden_and_undrawable_paths() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let window = window(&mut rng);
         let mut hidden = random_blob(&mut rng, [0.5, 0.5], 0.3);
@@ -438,9 +532,18 @@ mod tests {
         let mut broken = hidden;
         broken.alpha = 1.0;
         broken.points[4] = [f32::NAN, 0.5];
+        assert_eq!(window.render(&[hidden, broken]), window.canvas);
         let (loss, gradient) = window.l2_gradient(&[hidden, broken]);
         assert!(loss.is_finite());
-        assert!(gradient.iter().flatten().all(|g| *g == 0.0));
+        assert!(gradient[0][..PARAMS - 1].iter().all(|g| *g == 0.0), "{:?}", gradient[0]);
+        assert!(gradient[0][PARAMS - 1] != 0.0);
+        assert!(gradient[1].iter().all(|g| *g == 0.0));
+        // Its opacity's gradient is the one at a small opacity.
+        let mut faint = hidden;
+        faint.alpha = 1e-4;
+        let (_, near) = window.l2_gradient(&[faint]);
+        let (at, by) = (gradient[0][PARAMS - 1], near[0][PARAMS - 1]);
+        assert!((at - by).abs() < 1e-3 * by.abs(), "{at} vs {by}");
     }
 
     /// A handle ten million window widths away never hangs the sampling of the outline

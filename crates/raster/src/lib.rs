@@ -4,6 +4,7 @@
 
 pub mod device;
 mod exact;
+mod exact_batch;
 mod fit;
 mod geometry;
 mod gradient;
@@ -14,6 +15,7 @@ mod svg;
 
 pub use device::{Backend, BackendError};
 pub use exact::{coverage_exact, paint_exact, render_exact, skia_outline};
+pub use exact_batch::ExactBatch;
 pub use fit::fit_outline;
 pub use geometry::{Bounds, bernstein, cubic_point};
 pub use gradient::Window;

@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     device.seed(config.train.seed);
     let model_config = config.model.0.clone();
     let mut model = CoarseModel::new(&model_config, &device);
-    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let objective = CoarseObjective::new(&config);
     let mut optimizer = adamw(&config.train);
     let source =
         Arc::new(DataSource::new(&config.data, &model_config, config.train.batch_size, config.train.seed)?);

@@ -28,7 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let config: CoarseConfig = config::load(&args.config)?;
     let device = burn::tensor::Device::flex();
-    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let objective = CoarseObjective::new(&config);
     for path in &args.checkpoints {
         let (model, model_config) = load_coarse(path, &device)?;
         let set = Validation::build(

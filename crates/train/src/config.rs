@@ -307,13 +307,28 @@ impl RefineLoss {
     }
 }
 
-/// The `[raster]` table: the soft rasterizer of the losses.
+/// Which rasterizer the training losses read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Rasterizer {
+    /// The soft rasterizer in burn tensor ops, differentiated by autodiff: runs on every
+    /// backend, costs paths × pixels in the graph.
+    #[default]
+    Soft,
+    /// `raster::ExactBatch`: tiny-skia's coverage on the CPU, the gradient by edge sampling;
+    /// the render the SVG will have, for the cost of each path's own pixels.
+    Exact,
+}
+
+/// The `[raster]` table: the rasterizer of the losses.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RasterConfig {
-    /// Straight edges per cubic segment.
+    /// Soft (autodiff) or exact (edge sampling).
+    pub rasterizer: Rasterizer,
+    /// Straight edges per cubic segment (soft rasterizer; previews).
     pub segments_per_curve: usize,
-    /// Bands per pixel row.
+    /// Bands per pixel row (soft rasterizer; previews).
     pub subrows: usize,
     /// Colour under the paths in training renders.
     pub background: [f32; 3],
@@ -323,6 +338,7 @@ impl Default for RasterConfig {
     fn default() -> Self {
         let soft = SoftRasterOptions::default();
         Self {
+            rasterizer: Rasterizer::Soft,
             segments_per_curve: soft.segments_per_curve,
             subrows: soft.subrows,
             background: soft.background,
@@ -519,6 +535,9 @@ mod tests {
         assert_eq!(config.model.0.embed_dim, 384);
         let config: CoarseConfig = parse("[data]\n[train]\n").unwrap();
         assert_eq!(config.model.0, ModelConfig::preset(Preset::Cpu));
+        assert_eq!(config.raster.rasterizer, Rasterizer::Soft);
+        let config: CoarseConfig = parse("[data]\n[train]\n[raster]\nrasterizer = \"exact\"\n").unwrap();
+        assert_eq!(config.raster.rasterizer, Rasterizer::Exact);
     }
 
     #[test]
@@ -531,6 +550,8 @@ mod tests {
         assert_eq!(err, "train.batch_size must be positive");
         let err = problem::<RefineConfig>("[data]\n[train]\n[loss]\nguidance = \"dtw\"\n");
         assert!(err.contains("dtw"), "{err}");
+        let err = problem::<CoarseConfig>("[data]\n[train]\n[raster]\nrasterizer = \"fast\"\n");
+        assert!(err.contains("fast") && err.contains("exact"), "{err}");
         let err = problem::<CoarseConfig>("[model]\npatch_size = 7\n[data]\n[train]\n");
         assert!(err.contains("model.input_size"), "{err}");
     }

@@ -8,9 +8,9 @@ use dpw::{PathDistance, boundary_loss_of_union, dpw, multiscale_masked_l2, path_
 use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use raster::{PathBatch, SoftRasterOptions, paint_soft, paint_soft_with_union, render_soft_with_union};
+use raster::{ExactBatch, PathBatch, SoftRasterOptions, paint_soft_with_union};
 
-use crate::config::{Canvas, CoarseLoss, Guidance, RefineLoss};
+use crate::config::{Canvas, CoarseConfig, CoarseLoss, Guidance, Rasterizer, RefineConfig, RefineLoss};
 
 /// What one step computed: the total to minimize, the terms to report, and what to preview.
 pub struct StepOutput {
@@ -71,8 +71,21 @@ pub trait Objective {
 pub struct CoarseObjective {
     /// Loss weights and schedules.
     pub loss: CoarseLoss,
-    /// The soft rasterizer.
+    /// The soft rasterizer's options (its background is the exact one's too).
     pub raster: SoftRasterOptions,
+    /// Which rasterizer the losses read.
+    pub rasterizer: Rasterizer,
+}
+
+impl CoarseObjective {
+    /// The objective `config`'s `[loss]` and `[raster]` tables describe.
+    pub fn new(config: &CoarseConfig) -> Self {
+        Self {
+            loss: config.loss.clone(),
+            raster: config.raster.options(),
+            rasterizer: config.raster.rasterizer,
+        }
+    }
 }
 
 impl Objective for CoarseObjective {
@@ -88,25 +101,20 @@ impl Objective for CoarseObjective {
     }
 
     fn step(&self, model: &CoarseModel, crops: &CropBatch, step: usize) -> StepOutput {
-        let (pixels, masks) = (crops.pixels.clone(), crops.masks.clone());
+        let pixels = crops.pixels.clone();
         let [_, _, size, _] = pixels.dims();
         let mut laps = Laps::start();
         let paths = model.forward(pixels.clone());
         laps.lap("model");
-        let (render, union) = match self.loss.canvas {
-            Canvas::Background => render_soft_with_union(&paths, size, size, &self.raster),
-            Canvas::MeanColour => {
-                let [batch, _] = paths.dims();
-                paint_soft_with_union(
-                    crops.mean_colours().expand([batch, 3, size, size]),
-                    &paths,
-                    &self.raster,
-                )
-            }
+        let [batch, _] = paths.dims();
+        let canvas = match self.loss.canvas {
+            Canvas::Background => Tensor::<1>::from_floats(self.raster.background, &pixels.device())
+                .reshape([1, 3, 1, 1])
+                .expand([batch, 3, size, size]),
+            Canvas::MeanColour => crops.mean_colours().expand([batch, 3, size, size]),
         };
-        laps.lap("rasterizer");
-        let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
-        let bound = boundary_loss_of_union(union, masks, self.loss.boundary.dilation);
+        let terms = ImageTerms { l2_levels: self.loss.l2_levels, dilation: self.loss.boundary.dilation };
+        let (render, l2, bound) = terms.of(canvas, &paths, crops, self.rasterizer, &self.raster, &mut laps);
         let efficiency = path_efficiency_loss(paths.alpha());
         let (bound_weight, efficiency_weight) = (self.loss.boundary.at(step), self.loss.path_efficiency);
         let total = l2.clone() + bound.clone() * bound_weight + efficiency.clone() * efficiency_weight;
@@ -139,10 +147,27 @@ pub struct RefineObjective {
     pub input: InputSpec,
     /// Loss weights, schedules and guidance.
     pub loss: RefineLoss,
-    /// The soft rasterizer.
+    /// The soft rasterizer's options.
     pub raster: SoftRasterOptions,
+    /// Which rasterizer the losses (and the canvas of S₁) read.
+    pub rasterizer: Rasterizer,
     /// Seed of the split points.
     pub seed: u64,
+}
+
+impl RefineObjective {
+    /// The objective of `config` for a student of `teacher` (frozen here), whose input
+    /// contract is `input`.
+    pub fn new(config: &RefineConfig, teacher: CoarseModel, input: InputSpec) -> Self {
+        Self {
+            teacher: teacher.freeze(),
+            input,
+            loss: config.loss.clone(),
+            raster: config.raster.options(),
+            rasterizer: config.raster.rasterizer,
+            seed: config.train.seed,
+        }
+    }
 }
 
 impl Objective for RefineObjective {
@@ -160,7 +185,7 @@ impl Objective for RefineObjective {
     }
 
     fn step(&self, model: &RefineModel, crops: &CropBatch, step: usize) -> StepOutput {
-        let (pixels, masks) = (crops.pixels.clone(), crops.masks.clone());
+        let pixels = crops.pixels.clone();
         let [_, _, size, _] = pixels.dims();
         let device = pixels.device();
         let mut laps = Laps::start();
@@ -171,14 +196,15 @@ impl Objective for RefineObjective {
 
         let first = coarse.with_alpha(split.first_part(&device));
         let flat = crops.mean_colours().expand([batch, 3, size, size]);
-        let canvas = paint_soft(flat, &first, &self.raster).detach();
+        let canvas = match self.rasterizer {
+            Rasterizer::Soft => paint_soft_with_union(flat, &first, &self.raster).0.detach(),
+            Rasterizer::Exact => ExactBatch::paint(&flat, &first).render(&device),
+        };
         laps.lap("rasterizer");
         let added = model.forward(pixels.clone(), crops.masked_canvas(canvas.clone(), &self.input));
         laps.lap("model");
-        let (render, union) = paint_soft_with_union(canvas, &added, &self.raster);
-        laps.lap("rasterizer");
-        let l2 = multiscale_masked_l2(render.clone(), pixels, masks.clone(), self.loss.l2_levels);
-        let bound = boundary_loss_of_union(union, masks, self.loss.boundary.dilation);
+        let terms = ImageTerms { l2_levels: self.loss.l2_levels, dilation: self.loss.boundary.dilation };
+        let (render, l2, bound) = terms.of(canvas, &added, crops, self.rasterizer, &self.raster, &mut laps);
 
         let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
         let distances = distance.between(&added, &coarse); // [B, m, n]
@@ -211,6 +237,72 @@ impl Objective for RefineObjective {
                 laps.lap("losses");
                 laps.phases
             },
+        }
+    }
+}
+
+/// The terms of a loss that read the picture: the multi-scale masked L2 of the render and the
+/// boundary loss of the paths' union.
+struct ImageTerms {
+    /// Scales of the L2.
+    l2_levels: usize,
+    /// Dilation of the masks in the boundary loss.
+    dilation: usize,
+}
+
+impl ImageTerms {
+    /// `paths` painted over `canvas` (`[B, 3, S, S]`, not differentiated) by `rasterizer`:
+    /// the render `[B, 3, S, S]`, then the L2 against `crops` and the boundary term, both
+    /// differentiable with respect to the paths. Laps `rasterizer` and `losses`.
+    ///
+    /// The exact rasterizer's gradient comes from [`ExactBatch::gradient`]: the terms are
+    /// computed by burn on the exact render and union as leaves, their derivatives by those
+    /// leaves pulled back to the paths' parameters on the CPU, and each term returned as its
+    /// value plus `Σ params · gradient − (the same, detached)`, which is worth nothing and
+    /// differentiates to that gradient.
+    fn of(
+        &self,
+        canvas: Tensor<4>,
+        paths: &PathBatch,
+        crops: &CropBatch,
+        rasterizer: Rasterizer,
+        options: &SoftRasterOptions,
+        laps: &mut Laps,
+    ) -> (Tensor<4>, Tensor<1>, Tensor<1>) {
+        let (pixels, masks) = (crops.pixels.clone(), crops.masks.clone());
+        let losses = |render: Tensor<4>, union: Tensor<4>| {
+            let l2 = multiscale_masked_l2(render, pixels.clone(), masks.clone(), self.l2_levels);
+            (l2, boundary_loss_of_union(union, masks.clone(), self.dilation))
+        };
+        match rasterizer {
+            Rasterizer::Soft => {
+                let (render, union) = paint_soft_with_union(canvas, paths, options);
+                laps.lap("rasterizer");
+                let (l2, bound) = losses(render.clone(), union);
+                laps.lap("losses");
+                (render, l2, bound)
+            }
+            Rasterizer::Exact => {
+                let device = paths.device();
+                let exact = ExactBatch::paint(&canvas, paths);
+                let (render, union) =
+                    (exact.render(&device).require_grad(), exact.union(&device).require_grad());
+                laps.lap("rasterizer");
+                let (l2, bound) = losses(render.clone(), union.clone());
+                // l2 reads only the render and the boundary term only the union: one backward
+                // pass gives each term's derivatives.
+                let grads = (l2.clone() + bound.clone()).backward();
+                let (by_render, by_union) = (render.grad(&grads), union.grad(&grads));
+                laps.lap("losses");
+                let carry = |value: Tensor<1>, gradient: Tensor<3>| {
+                    let inner = (paths.params().clone() * gradient).sum();
+                    value.detach() + (inner.clone() - inner.detach())
+                };
+                let l2 = carry(l2, exact.gradient(by_render.as_ref(), None, &device));
+                let bound = carry(bound, exact.gradient(None, by_union.as_ref(), &device));
+                laps.lap("rasterizer");
+                (render.detach(), l2, bound)
+            }
         }
     }
 }

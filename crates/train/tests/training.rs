@@ -3,10 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use burn::module::Module;
 use burn::tensor::Device;
 use model::{CoarseModel, RefineModel, load_coarse};
-use train::config::{self, CoarseConfig, Guidance, RefineConfig};
+use train::config::{self, CoarseConfig, Guidance, Rasterizer, RefineConfig};
 use train::objective::{CoarseObjective, RefineObjective};
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
 use train::validation::{Validation, ValidationConfig};
@@ -45,10 +44,16 @@ fn smoke_coarse() -> CoarseConfig {
 
 /// Trains the coarse smoke config into `dir` for `steps` steps, resuming if asked.
 fn coarse(dir: &Path, steps: usize, resume: bool) -> f32 {
+    coarse_on(Rasterizer::Soft, dir, steps, resume)
+}
+
+/// [`coarse`] with the losses on `rasterizer`.
+fn coarse_on(rasterizer: Rasterizer, dir: &Path, steps: usize, resume: bool) -> f32 {
     let mut config = smoke_coarse();
     config.train.steps = steps;
+    config.raster.rasterizer = rasterizer;
     let device = Device::flex().autodiff();
-    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let objective = CoarseObjective::new(&config);
     let resumed = resume.then(|| resume_from::<CoarseObjective>(dir).unwrap());
     let path = checkpoint_path::<CoarseObjective>(dir);
     let start = model_from(
@@ -83,6 +88,20 @@ fn coarse_loss_falls_and_resuming_reproduces_the_uninterrupted_run() {
     }
 }
 
+/// The exact rasterizer's gradient (edge sampling, carried into autodiff) trains too, and
+/// keeps paths visible (hidden paths still get an opacity gradient).
+#[test]
+fn coarse_loss_falls_on_the_exact_rasterizer() {
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let dir = scratch("exact");
+    let final_loss = coarse_on(Rasterizer::Exact, &dir, 30, false);
+    let first = metric(&dir, "loss").first().unwrap().1;
+    assert!((final_loss as f64) < 0.7 * first, "loss {first} → {final_loss}");
+    let visible = metric(&dir, "visible_paths").last().unwrap().1;
+    assert!(visible >= 1.0, "{visible} visible paths per crop at the end");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
 #[test]
 fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
     let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
@@ -99,13 +118,7 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
     let path = checkpoint_path::<RefineObjective>(&dir);
     let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
     let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
-    let objective = RefineObjective {
-        teacher: teacher.clone().freeze(),
-        input: model_config.input,
-        loss: config.loss.clone(),
-        raster: config.raster.options(),
-        seed: config.train.seed,
-    };
+    let objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
     let run = Run { dir: dir.clone(), device, validation: None };
     let json = serde_json::to_value(&config).unwrap();
     train(&objective, start, &config.train, &config.data, json, &run).unwrap();
@@ -144,7 +157,7 @@ fn validation_scores_and_previews_are_written() {
         image_size: 64,
     };
     let device = Device::flex().autodiff();
-    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let objective = CoarseObjective::new(&config);
     let dir = scratch("validated");
     let path = checkpoint_path::<CoarseObjective>(&dir);
     let start = model_from(

@@ -31,7 +31,7 @@ fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::
     }
     let dir = args.out.unwrap_or_else(|| "runs/coarse".into());
     let device = args.backend.autodiff_device()?;
-    let objective = CoarseObjective { loss: config.loss.clone(), raster: config.raster.options() };
+    let objective = CoarseObjective::new(&config);
     let resume = if args.resume { Some(resume_from::<CoarseObjective>(&dir)?) } else { None };
     let path = checkpoint_path::<CoarseObjective>(&dir);
     let start = model_from(

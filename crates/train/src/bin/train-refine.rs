@@ -5,7 +5,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use burn::module::Module;
 use clap::Parser;
 use model::{RefineModel, load_coarse};
 use train::cli::{CommonArgs, finish};
@@ -42,13 +41,7 @@ fn run(args: CommonArgs, init: PathBuf) -> Result<train::trainer::Summary, Box<d
     let path = checkpoint_path::<RefineObjective>(&dir);
     let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
     let start = model_from(fresh, &model_config.clone(), resume, &path, (&device, config.train.seed))?;
-    let objective = RefineObjective {
-        teacher: teacher.freeze(),
-        input: model_config.input,
-        loss: config.loss.clone(),
-        raster: config.raster.options(),
-        seed: config.train.seed,
-    };
+    let objective = RefineObjective::new(&config, teacher, model_config.input);
     let config_json = serde_json::to_value(&config)?;
     let validation = Validation::scheduled(
         &config.validation,
