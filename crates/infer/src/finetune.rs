@@ -40,8 +40,9 @@ impl Default for FinetuneOptions {
     /// colours 3e-2 +3.00 / +3.24 / +3.33 dB; 5e-4 / 3e-2 +2.93 / +3.27 / +3.42; 2e-3 / 3e-2
     /// +2.78 / +2.91 / +2.95; 1e-3 / 1e-2 +2.70 / +2.92 / +3.05; 1e-3 / 1e-1 +3.02 / +3.23 /
     /// +3.30; the default with both rates falling linearly to a tenth over the budget +2.85 /
-    /// +3.13 / +3.24. Points at 1e-3 move about half a pixel a step at 512 px (the reference's
-    /// rate).
+    /// +3.13 / +3.24 (the sweep ran before the outline gradient read its sides from the
+    /// coverage; the default then gained +3.3 / +4.0 dB after 2 / 10 s in `eval`). Points at
+    /// 1e-3 move about half a pixel a step at 512 px (the reference's rate).
     fn default() -> Self {
         Self { budget: Budget::Steps(100), lr_points: 1e-3, lr_colors: 3e-2 }
     }

@@ -62,7 +62,7 @@ pub trait Objective {
     /// What `model` draws on `crops` at inference, where each region starts as its mean colour
     /// (paths in the crops' unit squares, with their opacity).
     fn draw(&self, model: &Self::Model, crops: &CropBatch) -> PathBatch;
-    /// The soft rasterizer of the losses (previews render with it too).
+    /// The soft rasterizer's options: the losses' when they read it, and the previews' soft column.
     fn raster(&self) -> &SoftRasterOptions;
 }
 
