@@ -8,7 +8,7 @@ use dpw::{PathDistance, boundary_loss_of_union, dpw, multiscale_masked_l2, path_
 use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use raster::{ExactBatch, PathBatch, SoftRasterOptions, paint_soft_with_union};
+use raster::{ExactBatch, PathBatch, SoftRasterOptions, paint_soft, paint_soft_with_union};
 
 use crate::config::{Canvas, CoarseConfig, CoarseLoss, Guidance, Rasterizer, RefineConfig, RefineLoss};
 
@@ -197,7 +197,7 @@ impl Objective for RefineObjective {
         let first = coarse.with_alpha(split.first_part(&device));
         let flat = crops.mean_colours().expand([batch, 3, size, size]);
         let canvas = match self.rasterizer {
-            Rasterizer::Soft => paint_soft_with_union(flat, &first, &self.raster).0.detach(),
+            Rasterizer::Soft => paint_soft(flat, &first, &self.raster).detach(),
             Rasterizer::Exact => ExactBatch::paint(&flat, &first).render(&device),
         };
         laps.lap("rasterizer");

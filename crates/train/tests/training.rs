@@ -111,29 +111,32 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
     config.data.fixed_batch = true;
     assert_eq!(config.loss.guidance, Guidance::Dpw);
 
-    let device = Device::flex().autodiff();
-    let (teacher, model_config) =
-        load_coarse(&checkpoint_path::<CoarseObjective>(&coarse_dir), &device).unwrap();
-    let dir = scratch("refine");
-    let path = checkpoint_path::<RefineObjective>(&dir);
-    let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
-    let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
-    let objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
-    let run = Run { dir: dir.clone(), device, validation: None };
-    let json = serde_json::to_value(&config).unwrap();
-    train(&objective, start, &config.train, &config.data, json, &run).unwrap();
+    // On both rasterizers: the exact one also paints the canvas E_r reads.
+    for rasterizer in [Rasterizer::Soft, Rasterizer::Exact] {
+        config.raster.rasterizer = rasterizer;
+        let device = Device::flex().autodiff();
+        let (teacher, model_config) =
+            load_coarse(&checkpoint_path::<CoarseObjective>(&coarse_dir), &device).unwrap();
+        let dir = scratch(&format!("refine-{rasterizer:?}"));
+        let path = checkpoint_path::<RefineObjective>(&dir);
+        let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
+        let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
+        let objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
+        let run = Run { dir: dir.clone(), device, validation: None };
+        let json = serde_json::to_value(&config).unwrap();
+        train(&objective, start, &config.train, &config.data, json, &run).unwrap();
 
-    let dpw: Vec<f64> = metric(&dir, "guidance").into_iter().map(|(_, v)| v).collect();
-    assert!(dpw.iter().all(|v| v.is_finite()), "{dpw:?}");
-    let half = dpw.len() / 2;
-    let (early, late) = (
-        dpw[..half].iter().sum::<f64>() / half as f64,
-        dpw[half..].iter().sum::<f64>() / (dpw.len() - half) as f64,
-    );
-    assert!(late < early, "DPW did not decrease: {dpw:?}");
-    for dir in [coarse_dir, dir] {
+        let dpw: Vec<f64> = metric(&dir, "guidance").into_iter().map(|(_, v)| v).collect();
+        assert!(dpw.iter().all(|v| v.is_finite()), "{rasterizer:?}: {dpw:?}");
+        let half = dpw.len() / 2;
+        let (early, late) = (
+            dpw[..half].iter().sum::<f64>() / half as f64,
+            dpw[half..].iter().sum::<f64>() / (dpw.len() - half) as f64,
+        );
+        assert!(late < early, "{rasterizer:?}: DPW did not decrease: {dpw:?}");
         std::fs::remove_dir_all(dir).unwrap();
     }
+    std::fs::remove_dir_all(coarse_dir).unwrap();
 }
 
 #[test]
