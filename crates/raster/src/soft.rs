@@ -76,13 +76,22 @@ impl SoftRasterOptions {
         self.background = background;
         self
     }
+
+    /// The background as a `[batch, 3, height, width]` canvas for `paths` (their batch size and
+    /// device): what [`render_soft`] paints over, and what any other rasterizer must paint
+    /// over to draw the same picture.
+    pub fn background_canvas(&self, paths: &PathBatch, height: usize, width: usize) -> Tensor<4> {
+        let [batch, _] = paths.dims();
+        let background = Tensor::<1>::from_floats(self.background, &paths.device()).reshape([1, 3, 1, 1]);
+        background.expand([batch, 3, height, width])
+    }
 }
 
 /// Renders `paths` to `[batch, 3, height, width]` over the options' background.
 ///
 /// Differentiable with respect to every parameter of `paths`; runs on any burn backend.
 pub fn render_soft(paths: &PathBatch, height: usize, width: usize, options: &SoftRasterOptions) -> Tensor<4> {
-    paint_soft(background(paths, height, width, options), paths, options)
+    paint_soft(options.background_canvas(paths, height, width), paths, options)
 }
 
 /// [`render_soft`], plus the union of the paths' coverage (see [`paint_soft_with_union`]).
@@ -92,14 +101,7 @@ pub fn render_soft_with_union(
     width: usize,
     options: &SoftRasterOptions,
 ) -> (Tensor<4>, Tensor<4>) {
-    paint_soft_with_union(background(paths, height, width, options), paths, options)
-}
-
-/// The options' background as a `[batch, 3, height, width]` canvas.
-fn background(paths: &PathBatch, height: usize, width: usize, options: &SoftRasterOptions) -> Tensor<4> {
-    let [batch, _] = paths.dims();
-    let background = Tensor::<1>::from_floats(options.background, &paths.device()).reshape([1, 3, 1, 1]);
-    background.expand([batch, 3, height, width])
+    paint_soft_with_union(options.background_canvas(paths, height, width), paths, options)
 }
 
 /// Paints `paths` over `canvas` (`[batch, 3, height, width]`, e.g. the render of earlier paths),

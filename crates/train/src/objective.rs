@@ -106,12 +106,12 @@ impl Objective for CoarseObjective {
         let mut laps = Laps::start();
         let paths = model.forward(pixels.clone());
         laps.lap("model");
-        let [batch, _] = paths.dims();
         let canvas = match self.loss.canvas {
-            Canvas::Background => Tensor::<1>::from_floats(self.raster.background, &pixels.device())
-                .reshape([1, 3, 1, 1])
-                .expand([batch, 3, size, size]),
-            Canvas::MeanColour => crops.mean_colours().expand([batch, 3, size, size]),
+            Canvas::Background => self.raster.background_canvas(&paths, size, size),
+            Canvas::MeanColour => {
+                let [batch, _] = paths.dims();
+                crops.mean_colours().expand([batch, 3, size, size])
+            }
         };
         let terms = ImageTerms { l2_levels: self.loss.l2_levels, dilation: self.loss.boundary.dilation };
         let (render, l2, bound) = terms.of(canvas, &paths, crops, self.rasterizer, &self.raster, &mut laps);
