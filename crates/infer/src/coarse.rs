@@ -9,11 +9,11 @@ use superpixel::RegionCrop;
 use crate::fallback::FallbackDrawing;
 use crate::scene::{Origin, Placed, Scene, Scope};
 
-/// How many coarse paths the stage may keep.
+/// How many paths the coarse stage may draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CoarseBudget {
-    /// The most E_c paths kept per region (0: E_c is not run).
-    pub per_region: usize,
+    /// The most E_c paths kept (0: E_c is not run).
+    pub paths: usize,
     /// The most paths the scene may hold when the stage ends (background and fallbacks
     /// included; they are always drawn).
     pub total: usize,
@@ -21,11 +21,16 @@ pub struct CoarseBudget {
 
 /// Draws `scene` (which must be empty) from `fallback`, the fallback drawing of its
 /// segmentation: the background path, then for every region in painter's order its fallback
-/// path and, in E_c's order, each visible E_c path that lowers the squared
-/// error over the pixels of the regions painted so far (later regions will paint over the
-/// rest), up to the budget. If the kept paths together made the whole image worse than the
-/// fallback drawing alone (a path can reach a later region where its fallback leaves a seam),
-/// they are all dropped.
+/// path and the E_c paths that draw it better.
+///
+/// E_c draws the regions the fallback drawing gets most wrong, as many as it may keep paths:
+/// a model's path pays where a flat region errs most. Each visible path, in the least-squares
+/// colour over what is drawn ([`Scene::fit_colour`]), is tried in E_c's order and kept if it
+/// lowers the squared error over the pixels of the regions painted so far (later regions
+/// will paint over the rest); of those, the ones that lowered it most are kept, up to the
+/// budget. If the kept paths together made the whole image worse than the fallback drawing
+/// alone (a path can reach a later region where its fallback leaves a seam), they are all
+/// dropped.
 ///
 /// # Panics
 /// If the scene already holds paths.
@@ -39,40 +44,66 @@ pub fn draw_coarse(
     device: &Device,
 ) {
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
+    let spare = budget.paths.min(budget.total.saturating_sub(1 + fallback.order.len()));
+    let mut proposals = vec![Vec::new(); fallback.order.len()];
+    if spare > 0 {
+        let chosen = worst_regions(scene, &fallback, spare);
+        let crops: Vec<RegionCrop> = chosen.iter().map(|&r| scene.region_crop(config, r)).collect();
+        let proposed = propose(coarse, &crops, scene.target().dimensions(), batch, device);
+        for (&region, paths) in chosen.iter().zip(proposed) {
+            proposals[region as usize] = paths;
+        }
+    }
     let FallbackDrawing { order, regions: fallbacks, background } = fallback;
-    let proposals = if budget.per_region == 0 {
-        vec![Vec::new(); order.len()]
-    } else {
-        let crops: Vec<RegionCrop> = order.iter().map(|&r| scene.region_crop(config, r)).collect();
-        propose(coarse, &crops, scene.target().dimensions(), batch, device)
-    };
     scene.push(Placed { path: background, region: None, origin: Origin::Background });
-    let mut spare = budget.total.saturating_sub(1 + order.len());
     let mut painted = vec![false; order.len()];
-    for ((&region, fallback), candidates) in order.iter().zip(fallbacks).zip(proposals) {
+    // (index in the scene, error it took away) of every E_c path that helped.
+    let mut gains: Vec<(usize, f64)> = Vec::new();
+    for (&region, fallback) in order.iter().zip(fallbacks) {
         painted[region as usize] = true;
         if let Some(path) = fallback {
             scene.push(Placed { path, region: Some(region), origin: Origin::Fallback });
         }
-        let mut kept = 0;
-        for path in candidates {
-            if kept == budget.per_region || spare == 0 {
-                break;
-            }
+        for path in std::mem::take(&mut proposals[region as usize]) {
+            let scope = Scope::Regions(&painted);
+            let path = scene.fit_colour(&path, scope).unwrap_or(path);
             let placed = Placed { path, region: Some(region), origin: Origin::Coarse };
-            if scene.try_push(placed, Scope::Regions(&painted), 0.0) {
-                kept += 1;
-                spare -= 1;
+            if let Some(gain) = scene.try_push(placed, scope, 0.0) {
+                gains.push((scene.len() - 1, gain));
             }
         }
     }
+    if gains.len() > spare {
+        gains.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut dropped = vec![false; scene.len()];
+        for &(index, _) in &gains[spare..] {
+            dropped[index] = true;
+        }
+        scene.retain(|index, _| !dropped[index]);
+    }
     if scene.paths().iter().any(|placed| placed.origin == Origin::Coarse) {
         let mut fallback_only = scene.clone();
-        fallback_only.retain(|placed| placed.origin != Origin::Coarse);
+        fallback_only.retain(|_, placed| placed.origin != Origin::Coarse);
         if scene.total_error() > fallback_only.total_error() {
             *scene = fallback_only;
         }
     }
+}
+
+/// The `count` regions whose pixels `fallback` (drawn over the empty `scene`) gets most wrong.
+fn worst_regions(scene: &Scene, fallback: &FallbackDrawing, count: usize) -> Vec<u32> {
+    let mut drawn = scene.clone();
+    drawn.push(Placed { path: fallback.background, region: None, origin: Origin::Background });
+    for (&region, path) in fallback.order.iter().zip(&fallback.regions) {
+        if let Some(path) = path {
+            drawn.push(Placed { path: *path, region: Some(region), origin: Origin::Fallback });
+        }
+    }
+    let errors = drawn.region_errors();
+    let mut ranked: Vec<u32> = (0..errors.len() as u32).collect();
+    ranked.sort_by(|&a, &b| errors[b as usize].total_cmp(&errors[a as usize]).then(a.cmp(&b)));
+    ranked.truncate(count);
+    ranked
 }
 
 /// E_c on every crop, `batch` at a time: each crop's visible paths, opaque, in the image's unit

@@ -207,8 +207,10 @@ pub fn vectorize(
     let mut scene = Scene::new(image.clone(), segmentation);
     lap("superpixels", &mut timings);
 
-    let reserved = (options.paths as f64 * point.refine_share as f64).floor() as usize;
-    let budget = CoarseBudget { per_region: point.coarse_paths, total: options.paths - reserved };
+    let budget = CoarseBudget {
+        paths: point.coarse_paths(options.paths),
+        total: options.paths - point.reserved_for_refine(options.paths),
+    };
     draw_coarse(&models.coarse, &models.config, &mut scene, fallback, budget, options.batch, device);
     lap("coarse", &mut timings);
 

@@ -10,7 +10,8 @@ use crate::scene::{Origin, Placed, Scene, Scope};
 /// Rounds of E_r until `scene` holds `budget` paths or no region is left to improve: each round
 /// ranks the regions by squared error, gives E_r (target, canvas) crops of the worst `batch`
 /// (as many as the remaining budget can use), and tries each proposed path over the current
-/// drawing, keeping those that lower the squared error of their box. A region none of whose
+/// drawing in its least-squares colour ([`Scene::fit_colour`]), keeping those that lower the
+/// squared error of their box. A region none of whose
 /// proposals helped is not proposed for again; the budget goes to the next-worst ones.
 pub fn draw_refinement(
     refine: &RefineModel,
@@ -52,11 +53,11 @@ pub fn draw_refinement(
                     return;
                 }
                 let path = crop_to_image(path, crop, width, height);
-                if scene.try_push(
-                    Placed { path, region: Some(region), origin: Origin::Refine },
-                    Scope::All,
-                    0.0,
-                ) {
+                let path = scene.fit_colour(&path, Scope::All).unwrap_or(path);
+                if scene
+                    .try_push(Placed { path, region: Some(region), origin: Origin::Refine }, Scope::All, 0.0)
+                    .is_some()
+                {
                     kept += 1;
                 }
             }

@@ -8,7 +8,7 @@
 
 use image::{Rgb, Rgb32FImage};
 use model::ModelConfig;
-use raster::{Path, paint_exact};
+use raster::{Path, coverage_exact_window, paint_exact};
 use superpixel::{BoundingBox, RegionCrop, Segmentation};
 use tiny_skia::{IntRect, Pixmap};
 
@@ -140,22 +140,60 @@ impl Scene {
 
     /// Paints `placed` over everything drawn so far and keeps it only if the squared error
     /// over the `scope` pixels of its box drops by more than `min_gain`; otherwise the canvas
-    /// is restored. Returns whether it was kept.
-    pub fn try_push(&mut self, placed: Placed, scope: Scope<'_>, min_gain: f64) -> bool {
-        let Some(bbox) = self.pixel_box(&placed.path) else { return false };
+    /// is restored. Returns how much it dropped when the path was kept, `None` otherwise.
+    pub fn try_push(&mut self, placed: Placed, scope: Scope<'_>, min_gain: f64) -> Option<f64> {
+        let bbox = self.pixel_box(&placed.path)?;
         let saved = self.save(bbox);
         let before = self.error(bbox, scope);
         let size = self.size();
         if !paint_exact(&mut self.canvas, &placed.path, size, (0, 0)) {
-            return false;
+            return None;
         }
-        if self.error(bbox, scope) < before - min_gain {
+        let gain = before - self.error(bbox, scope);
+        if gain > min_gain {
             self.paths.push(placed);
-            true
+            Some(gain)
         } else {
             self.restore(bbox, &saved);
-            false
+            None
         }
+    }
+
+    /// `path` in the fill colour that brings the drawing closest to the image over the `scope`
+    /// pixels it covers when painted over what is drawn: least squares over its anti-aliased
+    /// coverage, each channel clamped to [0, 1]. A model places a path better than it picks
+    /// its colour, and the colour has this closed form. `None` when the path cannot be drawn
+    /// or covers none of those pixels.
+    pub fn fit_colour(&self, path: &Path, scope: Scope<'_>) -> Option<Path> {
+        let bbox = self.pixel_box(path)?;
+        let size = self.size();
+        let coverage = coverage_exact_window(path, size, (bbox.x0, bbox.y0), (bbox.width(), bbox.height()))?;
+        let alpha = path.alpha.clamp(0.0, 1.0) as f64;
+        let (width, data) = (self.target.width(), self.canvas.data());
+        let (mut numerator, mut denominator) = ([0.0f64; 3], 0.0f64);
+        for (row, y) in (bbox.y0..bbox.y1).enumerate() {
+            for (column, x) in (bbox.x0..bbox.x1).enumerate() {
+                let index = (y * width + x) as usize;
+                if let Scope::Regions(marked) = scope {
+                    if !marked[self.segmentation.labels[index] as usize] {
+                        continue;
+                    }
+                }
+                let cover = alpha * coverage.data()[row * bbox.width() as usize + column] as f64 / 255.0;
+                if cover == 0.0 {
+                    continue;
+                }
+                // Painted: cover·colour + (1 − cover)·below; fit cover·colour to target − (1 − cover)·below.
+                let (target, i) = (self.target.get_pixel(x, y), 4 * index);
+                for c in 0..3 {
+                    let below = over_white(data[i + c], data[i + 3]) as f64;
+                    numerator[c] += cover * (target.0[c] as f64 - (1.0 - cover) * below);
+                }
+                denominator += cover * cover;
+            }
+        }
+        (denominator > 0.0)
+            .then(|| Path { color: numerator.map(|n| (n / denominator).clamp(0.0, 1.0) as f32), ..*path })
     }
 
     /// Sum of squared differences (RGB in [0, 1]) between the drawing, seen over white, and the
@@ -224,9 +262,14 @@ impl Scene {
         }
     }
 
-    /// Keeps only the paths `keep` accepts, in order, and renders the canvas again.
-    pub fn retain(&mut self, keep: impl Fn(&Placed) -> bool) {
-        self.paths.retain(|placed| keep(placed));
+    /// Keeps only the paths `keep` accepts (given each path's index and the path), in order,
+    /// and renders the canvas again.
+    pub fn retain(&mut self, mut keep: impl FnMut(usize, &Placed) -> bool) {
+        let mut index = 0;
+        self.paths.retain(|placed| {
+            index += 1;
+            keep(index - 1, placed)
+        });
         self.repaint();
     }
 
@@ -301,6 +344,43 @@ mod tests {
         Placed { path, region: Some(0), origin: Origin::Refine }
     }
 
+    /// The whole image's error after painting `placed` in `color` over `scene`.
+    fn error_with(scene: &Scene, mut placed: Placed, color: [f32; 3]) -> f64 {
+        let mut trial = scene.clone();
+        placed.path.color = color;
+        trial.push(placed);
+        trial.total_error()
+    }
+
+    #[test]
+    fn fitted_colours_are_the_least_squares_fill() {
+        let image = target();
+        let segmentation = slic(&image, &SlicOptions { n_segments: 4, ..Default::default() }).unwrap();
+        let mut scene = Scene::new(image, segmentation);
+        assert!(scene.push(square([0.0, 0.0], [1.0, 1.0], [0.5; 3])));
+        // Over the flat red half, pixel-aligned: exactly its colour.
+        let red =
+            scene.fit_colour(&square([0.0, 0.0], [0.5, 1.0], [0.0, 0.0, 1.0]).path, Scope::All).unwrap();
+        for (c, want) in red.color.iter().zip([0.9, 0.2, 0.1]) {
+            assert!((c - want).abs() < 1e-4, "{:?}", red.color);
+        }
+        // Half transparent, straddling both halves, edges mid-pixel: no colour nearby does better.
+        let mut straddling = square([0.3, 0.1], [0.77, 0.83], [0.0; 3]);
+        straddling.path.alpha = 0.5;
+        let fitted = scene.fit_colour(&straddling.path, Scope::All).unwrap();
+        let best = error_with(&scene, straddling, fitted.color);
+        for c in 0..3 {
+            for step in [-0.02, 0.02] {
+                let mut color = fitted.color;
+                color[c] = (color[c] + step).clamp(0.0, 1.0);
+                let error = error_with(&scene, straddling, color);
+                assert!(error >= best - 1e-9, "channel {c} {step:+}: {error} < {best}");
+            }
+        }
+        // Off the canvas: nothing to fit.
+        assert!(scene.fit_colour(&square([2.0, 2.0], [3.0, 3.0], [0.0; 3]).path, Scope::All).is_none());
+    }
+
     #[test]
     fn trials_keep_helpful_paths_and_leave_no_trace_of_others() {
         let image = target();
@@ -309,13 +389,17 @@ mod tests {
         assert!(scene.push(square([0.0, 0.0], [1.0, 1.0], [0.5; 3])));
         let before = scene.canvas().clone();
         // Blue on the red half makes it worse: rejected, canvas untouched.
-        assert!(!scene.try_push(square([0.1, 0.1], [0.4, 0.6], [0.0, 0.0, 1.0]), Scope::All, 0.0));
+        assert!(scene.try_push(square([0.1, 0.1], [0.4, 0.6], [0.0, 0.0, 1.0]), Scope::All, 0.0).is_none());
         assert_eq!(scene.canvas().data(), before.data());
         // Red on the red half helps.
-        assert!(scene.try_push(square([0.0, 0.0], [0.5, 1.0], [0.9, 0.2, 0.1]), Scope::All, 0.0));
+        assert!(
+            scene
+                .try_push(square([0.0, 0.0], [0.5, 1.0], [0.9, 0.2, 0.1]), Scope::All, 0.0)
+                .is_some_and(|gain| gain > 0.0)
+        );
         assert_eq!(scene.len(), 2);
         // Off the canvas: nothing to gain, nothing kept.
-        assert!(!scene.try_push(square([2.0, 2.0], [3.0, 3.0], [0.9, 0.2, 0.1]), Scope::All, 0.0));
+        assert!(scene.try_push(square([2.0, 2.0], [3.0, 3.0], [0.9, 0.2, 0.1]), Scope::All, 0.0).is_none());
         // The canvas is the exact rendering of the kept paths.
         let rendered = render_exact(&scene.scene(), 40, 30, [1.0; 3]);
         let drawn = scene.canvas_image();

@@ -38,19 +38,25 @@ fn no_stage_lowers_the_psnr() {
 
         let drawing = FallbackDrawing::new(&image, &segmentation);
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
-        let no_coarse = CoarseBudget { per_region: 0, total: 45 };
+        let no_coarse = CoarseBudget { paths: 0, total: 45 };
         draw_coarse(&models.coarse, &models.config, &mut fallback, drawing.clone(), no_coarse, 16, &device);
 
-        let mut scene = Scene::new(image.clone(), segmentation);
-        draw_coarse(
-            &models.coarse,
-            &models.config,
-            &mut scene,
-            drawing,
-            CoarseBudget { per_region: 2, total: 45 },
-            16,
-            &device,
+        // A budget of 3 E_c paths keeps (at most) the 3 that helped most: never more.
+        let mut few = Scene::new(image.clone(), segmentation.clone());
+        let three = CoarseBudget { paths: 3, total: 45 };
+        draw_coarse(&models.coarse, &models.config, &mut few, drawing.clone(), three, 16, &device);
+        let few_coarse = few.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
+        assert!((1..=3).contains(&few_coarse), "{few_coarse} E_c paths for a budget of 3");
+        assert!(
+            score(&few) >= score(&fallback),
+            "3 E_c paths {} < fallback {}",
+            score(&few),
+            score(&fallback)
         );
+
+        let mut scene = Scene::new(image.clone(), segmentation);
+        let coarse_budget = CoarseBudget { paths: 24, total: 45 };
+        draw_coarse(&models.coarse, &models.config, &mut scene, drawing, coarse_budget, 16, &device);
         let after_coarse = score(&scene);
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
         assert!(scene.len() <= 45);
@@ -83,7 +89,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let mut scene = Scene::new(image.clone(), segmentation.clone());
     let models = Models::load(&bundled("coarse.ckpt").unwrap(), None, &device).unwrap();
     let drawing = FallbackDrawing::new(&image, &segmentation);
-    let no_coarse = CoarseBudget { per_region: 0, total: regions + 1 };
+    let no_coarse = CoarseBudget { paths: 0, total: regions + 1 };
     draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);
     let before = psnr(&scene.canvas_image(), &image);
 

@@ -11,14 +11,15 @@ use crate::config::InvalidSetting;
 /// coarse checkpoint.
 ///
 /// With a budget of N paths, one path is the background, every region gets one fallback path
-/// (its outline in its mean colour) and up to `coarse_paths` paths from E_c that make it
-/// better, and `refine_share` · N paths are kept for E_r: the number of regions is
-/// ⌊(N·(1 − refine_share) − 1) / (1 + coarse_paths)⌋.
+/// (its outline in its mean colour), `coarse_share` · N paths go to E_c — the paths it draws
+/// in the regions the fallback drawing gets most wrong that lower the error most, wherever they
+/// are — and `refine_share` · N paths are kept for E_r: the number of regions is
+/// N − ⌊N·coarse_share⌋ − ⌊N·refine_share⌋ − 1.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OperatingPoint {
-    /// The most E_c paths kept per region on top of its fallback (0: E_c is not run).
-    pub coarse_paths: usize,
+    /// Share of the budget for E_c's paths, in [0, 1) (0: E_c is not run).
+    pub coarse_share: f32,
     /// Share of the budget kept for E_r, in [0, 1) (0: no refinement).
     pub refine_share: f32,
     /// SLIC is asked for this many times the regions, merged down by colour
@@ -36,7 +37,7 @@ impl Default for OperatingPoint {
     /// merged by colour into shapes no less compact than 0.3 (the best fallback drawing on
     /// data/eval/photos; see docs/operating-point.md).
     fn default() -> Self {
-        Self { coarse_paths: 0, refine_share: 0.0, oversegment: 3.0, min_compactness: 0.3 }
+        Self { coarse_share: 0.0, refine_share: 0.0, oversegment: 3.0, min_compactness: 0.3 }
     }
 }
 
@@ -44,8 +45,17 @@ impl OperatingPoint {
     /// Checks the values; the message names the field.
     pub fn validate(&self) -> Result<(), InvalidSetting> {
         let invalid = |message: String| Err(InvalidSetting(message));
+        if !(0.0..1.0).contains(&self.coarse_share) {
+            return invalid(format!("coarse_share must be within [0, 1), got {}", self.coarse_share));
+        }
         if !(0.0..1.0).contains(&self.refine_share) {
             return invalid(format!("refine_share must be within [0, 1), got {}", self.refine_share));
+        }
+        if self.coarse_share + self.refine_share >= 1.0 {
+            return invalid(format!(
+                "coarse_share + refine_share must leave paths for the regions, got {} + {}",
+                self.coarse_share, self.refine_share
+            ));
         }
         if !(self.oversegment.is_finite() && self.oversegment >= 1.0) {
             return invalid(format!("oversegment must be at least 1, got {}", self.oversegment));
@@ -63,8 +73,18 @@ impl OperatingPoint {
 
     /// Number of regions for a budget of `paths` (at least one).
     pub fn regions(&self, paths: usize) -> usize {
-        let for_regions = (paths as f64 * (1.0 - self.refine_share as f64)).floor() as usize;
-        (for_regions.saturating_sub(1) / (1 + self.coarse_paths)).max(1)
+        let models = self.coarse_paths(paths) + self.reserved_for_refine(paths);
+        paths.saturating_sub(models + 1).max(1)
+    }
+
+    /// The most E_c paths for a budget of `paths`.
+    pub fn coarse_paths(&self, paths: usize) -> usize {
+        (paths as f64 * self.coarse_share as f64).floor() as usize
+    }
+
+    /// The paths kept for E_r out of a budget of `paths`.
+    pub fn reserved_for_refine(&self, paths: usize) -> usize {
+        (paths as f64 * self.refine_share as f64).floor() as usize
     }
 }
 
@@ -77,10 +97,13 @@ mod tests {
         let mosaic = OperatingPoint::default();
         assert_eq!(mosaic.regions(500), 499);
         let split =
-            OperatingPoint { coarse_paths: 3, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
-        assert_eq!(split.regions(500), 99); // 99 · 4 + 1 = 397 ≤ 400
+            OperatingPoint { coarse_share: 0.1, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
+        assert_eq!(split.regions(500), 349); // 1 + 349 + 50 + 100 = 500
+        assert_eq!((split.coarse_paths(500), split.reserved_for_refine(500)), (50, 100));
         assert_eq!(split.regions(2), 1);
         assert!(OperatingPoint { refine_share: 1.0, ..mosaic }.validate().is_err());
+        assert!(OperatingPoint { coarse_share: -0.1, ..mosaic }.validate().is_err());
+        assert!(OperatingPoint { coarse_share: 0.5, refine_share: 0.5, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { oversegment: 0.5, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { min_compactness: 1.5, ..mosaic }.validate().is_err());
     }

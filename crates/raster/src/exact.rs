@@ -58,7 +58,7 @@ pub fn coverage_exact(path: &Path, width: u32, height: u32) -> Option<Mask> {
 /// [`coverage_exact`] inside the `size` window of a `canvas` = (width, height) image whose
 /// top-left pixel is `origin` (placed as [`paint_exact`] places paths), for the cost of the
 /// window.
-pub(crate) fn coverage_exact_window(
+pub fn coverage_exact_window(
     path: &Path,
     canvas: (u32, u32),
     origin: (u32, u32),

@@ -14,7 +14,7 @@ mod soft;
 mod svg;
 
 pub use device::{Backend, BackendError};
-pub use exact::{coverage_exact, paint_exact, render_exact, skia_outline};
+pub use exact::{coverage_exact, coverage_exact_window, paint_exact, render_exact, skia_outline};
 pub use exact_batch::ExactBatch;
 pub use fit::fit_outline;
 pub use geometry::{Bounds, bernstein, cubic_point};

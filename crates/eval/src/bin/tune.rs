@@ -1,7 +1,7 @@
 //! `tune`: measures SuperSVG-B over a grid of operating points (how a path budget is split
 //! between regions, E_c and E_r, and how regions are made) and stores the best with the model.
 //!
-//! `tune DIR --paths 500,2000 --coarse-paths 0,2,4 --refine-share 0,0.25 --oversegment 1,3
+//! `tune DIR --paths 500,2000 --coarse-share 0,0.1 --refine-share 0,0.25 --oversegment 1,3
 //!       --out docs/operating-point.md [--write models/coarse.ckpt]`
 //!
 //! Scores are the PSNR of the exact rendering at the working resolution, averaged over images
@@ -32,9 +32,9 @@ struct Args {
     /// Path budgets, comma separated.
     #[arg(long, value_delimiter = ',', default_value = "500,2000")]
     paths: Vec<usize>,
-    /// Values of the most E_c paths per region.
-    #[arg(long, value_delimiter = ',', default_value = "0,1,2,4")]
-    coarse_paths: Vec<usize>,
+    /// Values of the budget share for E_c.
+    #[arg(long, value_delimiter = ',', default_value = "0,0.05,0.1,0.2")]
+    coarse_share: Vec<f32>,
     /// Values of the budget share kept for E_r.
     #[arg(long, value_delimiter = ',', default_value = "0,0.1,0.25")]
     refine_share: Vec<f32>,
@@ -80,11 +80,11 @@ fn run(args: Args) -> anyhow::Result<()> {
     let device = args.backend.device()?;
     let (models, coarse, refine) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let mut points = Vec::new();
-    for &coarse_paths in &args.coarse_paths {
+    for &coarse_share in &args.coarse_share {
         for &refine_share in &args.refine_share {
             for &oversegment in &args.oversegment {
                 for &min_compactness in &args.min_compactness {
-                    let point = OperatingPoint { coarse_paths, refine_share, oversegment, min_compactness };
+                    let point = OperatingPoint { coarse_share, refine_share, oversegment, min_compactness };
                     point.validate().map_err(|err| anyhow!("grid point {point:?}: {err}"))?;
                     points.push(point);
                 }
@@ -128,7 +128,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     let mut text = format!(
         "# Operating point\n\nSuperSVG-B on `{}` ({} images, {} px), models `{}` and `{}`. PSNR of the exact \
          rendering, mean over images; paths per stage (background / fallback / coarse / refine), mean over \
-         images.\n\nCommand: `{}`\n\n| coarse paths | refine share | oversegment | min compactness |",
+         images.\n\nCommand: `{}`\n\n| coarse share | refine share | oversegment | min compactness |",
         args.dir.display(),
         images.len(),
         args.size,
@@ -149,7 +149,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         let _ = write!(
             text,
             "| {} | {} | {} | {} |",
-            p.coarse_paths, p.refine_share, p.oversegment, p.min_compactness
+            p.coarse_share, p.refine_share, p.oversegment, p.min_compactness
         );
         for b in 0..args.paths.len() {
             let stages: Vec<String> = m.stages[b].iter().map(|v| format!("{v:.0}")).collect();

@@ -39,8 +39,9 @@ struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// The most paths in the result (2 to 20000; fewer only when no further path lowers the
-    /// error), or `auto`: per image, double from 8 paths until the drawing reaches 30 dB PSNR or
-    /// a doubling gains less than 0.5 dB, at most 2000 (flat art gets few paths, photos many).
+    /// error), or `auto`: per image, double from 8 paths until the drawing reaches 30 dB PSNR,
+    /// and keep the fewest past which more paths gain less than 0.25 dB a doubling, at most 2000
+    /// (flat art gets few paths, photos many).
     #[arg(long, default_value = "500", value_parser = path_budget)]
     paths: PathBudget,
     /// Coarse-model checkpoint (default: the bundled one).
@@ -549,7 +550,7 @@ fn process(
                 .collect::<serde_json::Map<_, _>>(),
             "regions": result.scene.segmentation().regions.len(),
             "operating_point": {
-                "coarse_paths": result.operating_point.coarse_paths,
+                "coarse_share": result.operating_point.coarse_share,
                 "refine_share": result.operating_point.refine_share,
             },
             "mse": mse(&drawn, &loaded.image),
