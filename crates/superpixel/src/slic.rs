@@ -131,6 +131,22 @@ impl Segmentation {
         self.labels[(y * self.width + x) as usize]
     }
 
+    /// Per region, the squared RGB error of filling it with its mean colour (the sum over its
+    /// pixels of ‖pixel − mean‖²): what a region drawn flat leaves to draw. `image` is the
+    /// one segmented.
+    ///
+    /// # Panics
+    /// If `image` is not of the segmentation's size.
+    pub fn flat_errors(&self, image: &Rgb32FImage) -> Vec<f64> {
+        assert_eq!(image.dimensions(), (self.width, self.height), "image and segmentation sizes");
+        let mut errors = vec![0.0f64; self.regions.len()];
+        for (pixel, &label) in image.pixels().zip(&self.labels) {
+            let mean = self.regions[label as usize].mean_color;
+            errors[label as usize] += (0..3).map(|c| ((pixel.0[c] - mean[c]) as f64).powi(2)).sum::<f64>();
+        }
+        errors
+    }
+
     /// Builds the segmentation of `image` from a label map whose labels are `0..count`, all used.
     pub(crate) fn from_labels(image: &Rgb32FImage, labels: Vec<u32>, count: usize) -> Self {
         let (width, height) = image.dimensions();

@@ -262,3 +262,36 @@ fn crop_of_a_region_holds_its_colour_and_mask() {
         }
     }
 }
+
+#[test]
+fn flat_errors_are_what_a_mean_colour_fill_leaves() {
+    // Left half flat, right half a ramp: only regions on the ramp leave anything to draw.
+    let image = Rgb32FImage::from_fn(64, 32, |x, _| {
+        if x < 32 { image::Rgb([0.2, 0.4, 0.6]) } else { image::Rgb([(x - 32) as f32 / 31.0, 0.5, 0.5]) }
+    });
+    let segmentation = slic(&image, &SlicOptions { n_segments: 8, ..Default::default() }).unwrap();
+    let errors = segmentation.flat_errors(&image);
+    assert_eq!(errors.len(), segmentation.regions.len());
+    // Σ‖p − mean‖² = Σ‖p‖² − n‖mean‖², from the pixels alone.
+    let (mut sums, mut squares, mut counts) =
+        (vec![[0.0f64; 3]; errors.len()], vec![0.0f64; errors.len()], vec![0.0f64; errors.len()]);
+    for (index, pixel) in image.pixels().enumerate() {
+        let label = segmentation.labels[index] as usize;
+        counts[label] += 1.0;
+        for c in 0..3 {
+            sums[label][c] += pixel.0[c] as f64;
+            squares[label] += (pixel.0[c] as f64).powi(2);
+        }
+    }
+    let want: Vec<f64> = (0..errors.len())
+        .map(|r| squares[r] - sums[r].iter().map(|s| s * s).sum::<f64>() / counts[r])
+        .collect();
+    for (region, (got, want)) in errors.iter().zip(&want).enumerate() {
+        assert!((got - want).abs() <= 1e-4, "region {region}: {got} vs {want}");
+        let bbox = segmentation.regions[region].bbox;
+        if bbox.x1 <= 32 {
+            assert!(*got < 1e-6, "a flat region leaves {got}");
+        }
+    }
+    assert!(errors.iter().any(|&e| e > 0.1), "the ramp's regions leave error: {errors:?}");
+}

@@ -80,6 +80,18 @@ impl<'de> Deserialize<'de> for ModelSection {
     }
 }
 
+/// Which regions of a segmented scene a training batch takes (`data.pick`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionPick {
+    /// Any, at random.
+    #[default]
+    Random,
+    /// Those a fill of their mean colour gets most wrong: the regions inference gives E_c
+    /// (the operating point's `coarse_share` goes to the regions the flat drawing errs most on).
+    Worst,
+}
+
 /// The `[data]` table.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -103,6 +115,8 @@ pub struct DataConfig {
     /// Regions sampled from each segmented scene before the next (segmenting is the costly
     /// part of a sample).
     pub regions_per_scene: usize,
+    /// Which of a scene's regions become samples.
+    pub pick: RegionPick,
     /// Segment a random window of this side (pixels) of each scene, with the share of the
     /// region count its area is: the regions are as large as on the whole scene, for a fraction
     /// of the segmenting. 0 segments whole scenes.
@@ -128,6 +142,7 @@ impl Default for DataConfig {
             oversegment: 1.0,
             min_compactness: 0.0,
             regions_per_scene: 4,
+            pick: RegionPick::Random,
             window: 0,
             image_size: 256,
             workers: 1,

@@ -12,7 +12,7 @@ use superpixel::{RegionCrop, Segmentation, SlicError, segment};
 
 use super::images::{EXTENSIONS, ImageSet};
 use super::synthetic::synthetic_scene;
-use crate::config::DataConfig;
+use crate::config::{DataConfig, RegionPick};
 
 /// A data problem: a folder that cannot be used (missing, no images…), or a batch that could not
 /// be made.
@@ -111,10 +111,7 @@ impl DataSource {
                 ((count as f64 * share).round() as usize).clamp(1, (scene.width() * scene.height()) as usize);
             let segmentation = segment(&scene, count, &self.config.segment_options())
                 .map_err(|source| DataError::Segment { index, source })?;
-            let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
-                .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
-                .collect();
-            regions.shuffle(&mut rng);
+            let regions = pick_regions(&scene, &segmentation, self.config.pick, &mut rng);
             for &region in regions.iter().take(self.config.regions_per_scene) {
                 if crops.len() == self.batch_size {
                     break;
@@ -137,6 +134,26 @@ impl DataSource {
             _ => synthetic_scene(rng, self.config.image_size),
         }
     }
+}
+
+/// The regions of `segmentation` (of `scene`) worth a sample, in the order `pick` takes them.
+fn pick_regions(
+    scene: &Rgb32FImage,
+    segmentation: &Segmentation,
+    pick: RegionPick,
+    rng: &mut ChaCha8Rng,
+) -> Vec<u32> {
+    let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
+        .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
+        .collect();
+    match pick {
+        RegionPick::Random => regions.shuffle(rng),
+        RegionPick::Worst => {
+            let errors = segmentation.flat_errors(scene);
+            regions.sort_by(|&a, &b| errors[b as usize].total_cmp(&errors[a as usize]).then(a.cmp(&b)));
+        }
+    }
+    regions
 }
 
 /// A random `side × side` window of `scene` (the whole scene if it is not larger; 0 means the
@@ -164,6 +181,23 @@ mod tests {
         let err = source.batch(4).unwrap_err();
         assert!(matches!(err, DataError::Segment { index: 4, .. }), "{err}");
         assert!(err.to_string().starts_with("batch 4: a scene could not be segmented"), "{err}");
+    }
+
+    #[test]
+    fn picking_the_worst_takes_what_a_flat_fill_gets_most_wrong_first() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let scene = synthetic_scene(&mut rng, 96);
+        let segmentation = segment(&scene, 24, &DataConfig::default().segment_options()).unwrap();
+        let errors = segmentation.flat_errors(&scene);
+        let worst = pick_regions(&scene, &segmentation, RegionPick::Worst, &mut rng);
+        assert!(worst.len() > 4);
+        assert!(worst.windows(2).all(|w| errors[w[0] as usize] >= errors[w[1] as usize]));
+        let mut random = pick_regions(&scene, &segmentation, RegionPick::Random, &mut rng);
+        assert_ne!(random, worst, "a shuffle of {} regions came out sorted", worst.len());
+        random.sort();
+        let mut same = worst.clone();
+        same.sort();
+        assert_eq!(random, same, "both picks choose among the same regions");
     }
 
     #[test]
