@@ -4,7 +4,7 @@
 use burn::tensor::Device;
 use model::{CoarseModel, CropBatch, ModelConfig, crop_to_image};
 use raster::Path;
-use superpixel::RegionCrop;
+use superpixel::{RegionCrop, worst_first};
 
 use crate::fallback::FallbackDrawing;
 use crate::scene::{Origin, Placed, Scene, Scope};
@@ -101,7 +101,7 @@ fn worst_regions(scene: &Scene, fallback: &FallbackDrawing, count: usize) -> Vec
     }
     let errors = drawn.region_errors();
     let mut ranked: Vec<u32> = (0..errors.len() as u32).collect();
-    ranked.sort_by(|&a, &b| errors[b as usize].total_cmp(&errors[a as usize]).then(a.cmp(&b)));
+    worst_first(&mut ranked, &errors);
     ranked.truncate(count);
     ranked
 }

@@ -3,7 +3,7 @@
 
 use burn::tensor::Device;
 use model::{CropBatch, ModelConfig, RefineModel, canvas_cells, crop_to_image};
-use superpixel::RegionCrop;
+use superpixel::{RegionCrop, worst_first};
 
 use crate::scene::{Origin, Placed, Scene, Scope};
 
@@ -30,7 +30,7 @@ pub fn draw_refinement(
         let errors = scene.region_errors();
         let mut worst: Vec<u32> =
             (0..regions as u32).filter(|&r| !exhausted[r as usize] && errors[r as usize] > 0.0).collect();
-        worst.sort_by(|a, b| errors[*b as usize].total_cmp(&errors[*a as usize]).then(a.cmp(b)));
+        worst_first(&mut worst, &errors);
         worst.truncate(remaining.div_ceil(config.refine_paths).min(batch.max(1)));
         if worst.is_empty() {
             return;

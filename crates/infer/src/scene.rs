@@ -174,10 +174,8 @@ impl Scene {
         for (row, y) in (bbox.y0..bbox.y1).enumerate() {
             for (column, x) in (bbox.x0..bbox.x1).enumerate() {
                 let index = (y * width + x) as usize;
-                if let Scope::Regions(marked) = scope {
-                    if !marked[self.segmentation.labels[index] as usize] {
-                        continue;
-                    }
+                if !self.in_scope(index, scope) {
+                    continue;
                 }
                 let cover = alpha * coverage.data()[row * bbox.width() as usize + column] as f64 / 255.0;
                 if cover == 0.0 {
@@ -205,10 +203,8 @@ impl Scene {
             let row = (y * width) as usize;
             for x in bbox.x0..bbox.x1 {
                 let index = row + x as usize;
-                if let Scope::Regions(marked) = scope {
-                    if !marked[self.segmentation.labels[index] as usize] {
-                        continue;
-                    }
+                if !self.in_scope(index, scope) {
+                    continue;
                 }
                 sum += pixel_error(self.canvas.data(), index, self.target.get_pixel(x, y));
             }
@@ -282,6 +278,14 @@ impl Scene {
     /// Takes the scene apart: its paths and segmentation.
     pub fn into_parts(self) -> (Vec<Placed>, Segmentation) {
         (self.paths, self.segmentation)
+    }
+
+    /// Whether pixel `index` (row-major) is one of the `scope` pixels.
+    fn in_scope(&self, index: usize, scope: Scope<'_>) -> bool {
+        match scope {
+            Scope::All => true,
+            Scope::Regions(marked) => marked[self.segmentation.labels[index] as usize],
+        }
     }
 
     fn size(&self) -> (u32, u32) {

@@ -15,4 +15,4 @@ mod slic;
 pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
 pub use input::{InputError, to_rgb_over, to_rgb_over_white};
 pub use merge::{SegmentOptions, segment};
-pub use slic::{BoundingBox, Region, Segmentation, SlicError, SlicOptions, slic};
+pub use slic::{BoundingBox, Region, Segmentation, SlicError, SlicOptions, slic, worst_first};

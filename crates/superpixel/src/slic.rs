@@ -174,6 +174,13 @@ impl Segmentation {
     }
 }
 
+/// Orders `regions` (labels) by `errors[label]`, largest first, ties by label: the order in
+/// which training and inference give regions to a model (the ones a drawing gets most wrong
+/// first), deterministic whatever the errors.
+pub fn worst_first(regions: &mut [u32], errors: &[f64]) {
+    regions.sort_by(|&a, &b| errors[b as usize].total_cmp(&errors[a as usize]).then(a.cmp(&b)));
+}
+
 /// An image in CIELAB, one plane per channel (contiguous rows for the assignment loop).
 struct Lab {
     l: Vec<f32>,

@@ -8,7 +8,7 @@ use model::{CropBatch, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use superpixel::{RegionCrop, Segmentation, SlicError, segment};
+use superpixel::{RegionCrop, Segmentation, SlicError, segment, worst_first};
 
 use super::images::{EXTENSIONS, ImageSet};
 use super::synthetic::synthetic_scene;
@@ -148,10 +148,7 @@ fn pick_regions(
         .collect();
     match pick {
         RegionPick::Random => regions.shuffle(rng),
-        RegionPick::Worst => {
-            let errors = segmentation.flat_errors(scene);
-            regions.sort_by(|&a, &b| errors[b as usize].total_cmp(&errors[a as usize]).then(a.cmp(&b)));
-        }
+        RegionPick::Worst => worst_first(&mut regions, &segmentation.flat_errors(scene)),
     }
     regions
 }
