@@ -7,7 +7,7 @@ use burn::tensor::Device;
 use image::Rgb32FImage;
 use model::OperatingPoint;
 use raster::render_exact;
-use superpixel::{Segmentation, SlicError, segment};
+use superpixel::{SegmentOptions, Segmentation, SlicError, segment};
 
 use crate::coarse::{CoarseBudget, draw_coarse};
 use crate::fallback::FallbackDrawing;
@@ -78,11 +78,19 @@ pub struct Vectorization {
 
 /// The SLIC compactness of the plain-SLIC candidates of [`choose_segmentation`], as fractions of
 /// the method's: less compact regions follow colour edges instead of staying round, which flat
-/// art rewards. On the 31 emoji of data/eval, with one extra candidate at 1/2 or 1/3 of 30 the
-/// coarse stage's drawing gains about 1 dB at 500 paths; two extra gain 1.2–1.4 dB (measured in
-/// docs/operating-point.md). Lower (1/6) helped less, and each candidate costs one SLIC, one
-/// fitting and one rendering.
+/// art rewards. On the 31 emoji of data/eval at the stored operating point, one extra candidate
+/// at 1/2 or 1/3 of 30 gains about 1 dB at 500 paths, these three 1.4 / 1.0 dB at 500 / 2000
+/// (docs/operating-point.md); 1/6 alone gained 0.3. Each candidate costs one SLIC, one fitting
+/// and one rendering.
 const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
+
+/// How [`choose_segmentation`]'s candidates are made: merged by colour as `point` makes them (if
+/// it oversegments), then plain SLIC at each of [`PLAIN_COMPACTNESS`] × `compactness`.
+fn candidates(point: &OperatingPoint, compactness: f32) -> impl Iterator<Item = SegmentOptions> {
+    let plain = OperatingPoint { oversegment: 1.0, ..*point };
+    let merged = (point.oversegment > 1.0).then(|| point.segment_options(compactness));
+    merged.into_iter().chain(PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction)))
+}
 
 /// `image` split into `regions` superpixels, of the candidates the one whose fallback drawing
 /// draws it best: SLIC merged by colour as the operating point makes it (if it oversegments),
@@ -98,13 +106,8 @@ pub fn choose_segmentation(
     point: &OperatingPoint,
     compactness: f32,
 ) -> Result<(Segmentation, FallbackDrawing), SlicError> {
-    let plain = OperatingPoint { oversegment: 1.0, ..*point };
-    let merged = (point.oversegment > 1.0).then(|| point.segment_options(compactness));
-    let candidates = merged
-        .into_iter()
-        .chain(PLAIN_COMPACTNESS.iter().map(|fraction| plain.segment_options(compactness * fraction)));
     let mut best: Option<(f64, Segmentation, FallbackDrawing)> = None;
-    for options in candidates {
+    for options in candidates(point, compactness) {
         let segmentation = segment(image, regions, &options)?;
         let drawing = FallbackDrawing::new(image, &segmentation);
         let error = drawing_error(&drawing, image);
@@ -283,9 +286,12 @@ mod tests {
         let (segmentation, drawing) = choose_segmentation(&image, 24, &point, 30.0).unwrap();
         let chosen = drawing_error(&drawing, &image);
         assert_eq!(drawing.regions.len(), segmentation.regions.len());
-        let plain = OperatingPoint { oversegment: 1.0, ..point };
-        let mut candidates = vec![point.segment_options(30.0)];
-        candidates.extend(PLAIN_COMPACTNESS.iter().map(|f| plain.segment_options(30.0 * f)));
+        let candidates: Vec<SegmentOptions> = candidates(&point, 30.0).collect();
+        assert_eq!(
+            candidates.len(),
+            1 + PLAIN_COMPACTNESS.len(),
+            "the merged candidate, then the plain ones"
+        );
         let errors: Vec<f64> = candidates
             .iter()
             .map(|options| {

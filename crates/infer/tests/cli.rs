@@ -468,10 +468,10 @@ fn auto_budget_gives_flat_art_few_paths_and_refuses_a_region_count() {
     let result = fixture.infer(&[flat_in.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "auto"]);
     assert!(result.status.success(), "{}", text(&result.stderr));
     let drawn = std::fs::read_to_string(&out).unwrap().matches("<path").count();
-    // The two halves draw at 29.6–30.2 dB at every rung from 8 to 64 paths (the half-pixel
-    // overlap of the fallback paths mixes one column at the edge), so which rung first reaches
-    // auto's 30 dB is a matter of hundredths; what holds is that flat art stops within a few
-    // rungs, far below the 2000 a photo gets.
+    // The fallback draws the two halves at 29.5–30.2 dB at every rung from 8 to 64 paths (the
+    // half-pixel overlap of its paths mixes one column at the edge; `infer --paths R+1 --regions
+    // R --no-refine`, R = 7, 15, 31, 63), so which rung first reaches auto's 30 dB is a matter of
+    // hundredths; what holds is that flat art stops within a few rungs, far below a photo's 2000.
     assert!((2..=32).contains(&drawn), "two flat halves drawn with {drawn} paths: {}", text(&result.stderr));
 
     let refused = fixture.infer(&[
