@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use image::{Rgb, Rgb32FImage};
 use model::OperatingPoint;
-use raster::Path as VectorPath;
+use raster::Shape;
 use superpixel::{SlicError, SlicOptions, slic};
 
 /// Why a method could not draw an image.
@@ -219,10 +219,10 @@ pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FIma
 }
 
 /// SuperSVG's fallback drawing alone with at most `paths` paths: the background and `paths − 1`
-/// superpixels (made and chosen as the default operating point makes them), each its outline fitted with
-/// one path in its mean colour. What the pipeline starts from, and what its learned stages must
+/// superpixels (made and chosen as the default operating point makes them), each its outline traced
+/// along its pixels, in its mean colour. What the pipeline starts from, and what its learned stages must
 /// improve on.
-pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<VectorPath>, f64), PeerError> {
+pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<Shape>, f64), PeerError> {
     let started = Instant::now();
     let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
     let point = OperatingPoint::default();

@@ -11,7 +11,7 @@ pub fn spill(paths: &[Placed], segmentation: &Segmentation, dilation: u32) -> f6
     let (width, height) = (segmentation.width, segmentation.height);
     let (mut outside, mut total) = (0.0f64, 0.0f64);
     for placed in paths {
-        let (Some(region), Some(mask)) = (placed.region, coverage_exact(&placed.path, width, height)) else {
+        let (Some(region), Some(mask)) = (placed.region, coverage_exact(&placed.shape, width, height)) else {
             continue;
         };
         for (index, &value) in mask.data().iter().enumerate() {
@@ -58,7 +58,7 @@ mod tests {
         let square = |x0: f32, x1: f32| {
             let path =
                 Path::quadrilateral([[x0, 0.0], [x1, 0.0], [x1, 1.0], [x0, 1.0]], [1.0, 0.0, 0.0], 1.0);
-            Placed { path, region: Some(left), origin: Origin::Coarse }
+            Placed { shape: path.into(), region: Some(left), origin: Origin::Coarse }
         };
         assert_eq!(spill(&[square(0.0, 0.5)], &segmentation, 0), 0.0);
         // The whole width: the right half (20 of 40 columns) spills, minus what dilation forgives.

@@ -55,19 +55,19 @@ pub fn draw_coarse(
         }
     }
     let FallbackDrawing { order, regions: fallbacks, background } = fallback;
-    scene.push(Placed { path: background, region: None, origin: Origin::Background });
+    scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background });
     let mut painted = vec![false; order.len()];
     // (index in the scene, error it took away) of every E_c path that helped.
     let mut gains: Vec<(usize, f64)> = Vec::new();
     for (&region, fallback) in order.iter().zip(fallbacks) {
         painted[region as usize] = true;
-        if let Some(path) = fallback {
-            scene.push(Placed { path, region: Some(region), origin: Origin::Fallback });
+        if let Some(shape) = fallback {
+            scene.push(Placed { shape, region: Some(region), origin: Origin::Fallback });
         }
         for path in std::mem::take(&mut proposals[region as usize]) {
             let scope = Scope::Regions(&painted);
             let path = scene.fit_colour(&path, scope).unwrap_or(path);
-            let placed = Placed { path, region: Some(region), origin: Origin::Coarse };
+            let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Coarse };
             if let Some(gain) = scene.try_push(placed, scope, 0.0) {
                 gains.push((scene.len() - 1, gain));
             }
@@ -93,10 +93,10 @@ pub fn draw_coarse(
 /// The `count` regions whose pixels `fallback` (drawn over the empty `scene`) gets most wrong.
 fn worst_regions(scene: &Scene, fallback: &FallbackDrawing, count: usize) -> Vec<u32> {
     let mut drawn = scene.clone();
-    drawn.push(Placed { path: fallback.background, region: None, origin: Origin::Background });
-    for (&region, path) in fallback.order.iter().zip(&fallback.regions) {
-        if let Some(path) = path {
-            drawn.push(Placed { path: *path, region: Some(region), origin: Origin::Fallback });
+    drawn.push(Placed { shape: fallback.background.into(), region: None, origin: Origin::Background });
+    for (&region, shape) in fallback.order.iter().zip(&fallback.regions) {
+        if let Some(shape) = shape {
+            drawn.push(Placed { shape: shape.clone(), region: Some(region), origin: Origin::Fallback });
         }
     }
     let errors = drawn.region_errors();

@@ -1,26 +1,27 @@
 //! The simplest drawing of an image split into superpixels: one path under everything, then
-//! every region's outline, fitted with one path, in its mean colour.
+//! every region's outline, traced along its pixel edges, in its mean colour: the superpixels
+//! exactly, as one shape each.
 //!
 //! Every result starts from it, so no pixel is left uncovered whatever the later stages keep,
 //! and a region's learned paths are kept only where they beat it.
 
 use image::Rgb32FImage;
-use raster::{Path, fit_outline, paint_exact};
+use raster::{Path, Polygon, Shape, fit_outline, paint_exact};
 use rayon::prelude::*;
 use superpixel::Segmentation;
 use tiny_skia::Pixmap;
 
-/// How far (pixels) each region's outline is pushed outwards before it is fitted, so the paths
-/// of neighbouring regions overlap instead of leaving seams of the background between them;
-/// the later region covers the overlap. Half a pixel measured best on data/eval/photos (see
-/// docs/operating-point.md).
+/// How far (pixels) a region's outline is pushed outwards when it is fitted with one path
+/// ([`fitted_path`]), so the paths of neighbouring regions overlap instead of leaving seams of
+/// the background between them; the later region covers the overlap. Half a pixel measured
+/// best on data/eval/photos (see docs/operating-point.md).
 pub const GROW: f32 = 0.5;
 
 /// A path covering the whole canvas, in the colour that is best where `above` (the paths to be
 /// painted over it) leaves it showing: the mean of the image weighted by how little `above`
 /// covers each pixel (the image's mean if `above` covers everything). On flat art the seams
 /// between regions then show the page's colour, not a tint of everything in the picture.
-pub fn background(image: &Rgb32FImage, above: &[Path]) -> Path {
+pub fn background(image: &Rgb32FImage, above: &[Shape]) -> Path {
     let (width, height) = image.dimensions();
     let mut cover = Pixmap::new(width, height).expect("a non-empty image");
     for path in above {
@@ -41,13 +42,23 @@ pub fn background(image: &Rgb32FImage, above: &[Path]) -> Path {
     Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], color, 1.0)
 }
 
-/// Region `region`'s outline fitted with one path (the image's unit square), in its mean
-/// colour; `None` if the outline cannot be fitted (never for a region of at least one pixel).
-pub fn region_path(segmentation: &Segmentation, region: u32, grow: f32) -> Option<Path> {
-    let outline = segmentation.outline(region);
-    let color = segmentation.regions[region as usize].mean_color;
+/// Region `region`'s outline traced along its pixel edges (the image's unit square), in its
+/// mean colour; `None` for a region without pixels. Painted in [`painter_order`], the regions'
+/// polygons draw the segmentation pixel for pixel: their edges lie on pixel edges, so they
+/// neither overlap nor leave seams, and a region's holes are regions painted after it.
+pub fn region_polygon(segmentation: &Segmentation, region: u32) -> Option<Polygon> {
     let (width, height) = (segmentation.width as f32, segmentation.height as f32);
-    let path = fit_outline(&outline, grow, color, 1.0)?;
+    let corners = segmentation.outline(region).into_iter().map(|[x, y]| [x / width, y / height]).collect();
+    Polygon::new(corners, segmentation.regions[region as usize].mean_color, 1.0)
+}
+
+/// `polygon` (unit square of a `width × height` canvas) as one path: its outline fitted with
+/// four cubics, grown by [`GROW`] pixels. What fine-tuning, which moves paths, starts from;
+/// `None` if the outline cannot be fitted.
+pub fn fitted_path(polygon: &Polygon, (width, height): (u32, u32)) -> Option<Path> {
+    let (width, height) = (width as f32, height as f32);
+    let outline: Vec<[f32; 2]> = polygon.corners().iter().map(|[x, y]| [x * width, y * height]).collect();
+    let path = fit_outline(&outline, GROW, polygon.color, polygon.alpha)?;
     Some(path.map_points(|[x, y]| [x / width, y / height]))
 }
 
@@ -69,8 +80,8 @@ pub fn painter_order(segmentation: &Segmentation) -> Vec<u32> {
 pub struct FallbackDrawing {
     /// The regions in painter's order ([`painter_order`]).
     pub order: Vec<u32>,
-    /// Each region's path, in `order`; `None` where a region cannot be fitted.
-    pub regions: Vec<Option<Path>>,
+    /// Each region's polygon, in `order`; `None` where a region has no pixels.
+    pub regions: Vec<Option<Shape>>,
     /// The path under everything ([`background`] of the region paths).
     pub background: Path,
 }
@@ -79,15 +90,15 @@ impl FallbackDrawing {
     /// Fits every region of `segmentation` (in parallel) and the background of `image` under them.
     pub fn new(image: &Rgb32FImage, segmentation: &Segmentation) -> Self {
         let order = painter_order(segmentation);
-        let regions: Vec<Option<Path>> =
-            order.par_iter().map(|&r| region_path(segmentation, r, GROW)).collect();
-        let background = background(image, &regions.iter().flatten().copied().collect::<Vec<_>>());
+        let regions: Vec<Option<Shape>> =
+            order.par_iter().map(|&r| region_polygon(segmentation, r).map(Shape::from)).collect();
+        let background = background(image, &regions.iter().flatten().cloned().collect::<Vec<_>>());
         Self { order, regions, background }
     }
 
-    /// The drawing alone: the background, then every region's path in painter's order.
-    pub fn paths(&self) -> Vec<Path> {
-        std::iter::once(self.background).chain(self.regions.iter().flatten().copied()).collect()
+    /// The drawing alone: the background, then every region's polygon in painter's order.
+    pub fn paths(&self) -> Vec<Shape> {
+        std::iter::once(self.background.into()).chain(self.regions.iter().flatten().cloned()).collect()
     }
 }
 
@@ -97,10 +108,9 @@ mod tests {
     use superpixel::{SlicOptions, slic};
 
     use super::*;
-    use crate::metrics::psnr;
 
     #[test]
-    fn the_mosaic_is_close_to_the_pixel_exact_one() {
+    fn the_drawing_is_the_pixel_exact_mosaic() {
         let image = Rgb32FImage::from_fn(96, 64, |x, y| {
             let wave = ((x as f32 / 9.0).sin() + (y as f32 / 7.0).cos()) * 0.25 + 0.5;
             Rgb([wave, (x as f32 / 96.0), if (x / 24 + y / 16) % 2 == 0 { 0.8 } else { 0.2 }])
@@ -112,8 +122,24 @@ mod tests {
         let drawn =
             raster::render_exact(&FallbackDrawing::new(&image, &segmentation).paths(), 96, 64, [1.0; 3]);
         let drawn = image::DynamicImage::ImageRgb8(drawn).to_rgb32f();
-        let (ours, pixels) = (psnr(&drawn, &image), psnr(&exact, &image));
-        assert!(ours > pixels - 1.5, "fitted outlines {ours:.2} dB, pixel regions {pixels:.2} dB");
+        // Every pixel is its region's colour, to the rounding of an 8-bit canvas.
+        for (ours, pixel) in drawn.pixels().zip(exact.pixels()) {
+            for c in 0..3 {
+                assert!((ours.0[c] - pixel.0[c]).abs() <= 0.5 / 255.0 + 1e-6, "{ours:?} vs {pixel:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_fitted_path_covers_its_polygon() {
+        // A 10 × 10 pixel square at (5, 5) on a 20 × 20 canvas.
+        let corners = vec![[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]];
+        let polygon = Polygon::new(corners, [0.2, 0.4, 0.6], 1.0).unwrap();
+        let path = fitted_path(&polygon, (20, 20)).unwrap();
+        assert_eq!((path.color, path.alpha), (polygon.color, polygon.alpha));
+        // The square's area (1/4 of the canvas) grown by half a pixel on each side.
+        let grown = (11.0f32 / 20.0).powi(2);
+        assert!((path.signed_area().abs() - grown).abs() < 0.02, "{}", path.signed_area());
     }
 
     #[test]

@@ -7,8 +7,9 @@
 
 use std::time::Instant;
 
-use raster::{COORDS, PARAMS, Path, Window};
+use raster::{COORDS, PARAMS, Path, Shape, Window};
 
+use crate::fallback::fitted_path;
 use crate::scene::Scene;
 
 /// How long to fine-tune.
@@ -61,9 +62,10 @@ pub struct Progress {
     pub psnr: f64,
 }
 
-/// Fine-tunes every path of `scene` against its image. If the best state found is still worse
-/// than the start (it cannot be, but the scene's own renderer has the last word), the scene
-/// keeps its old paths. Returns the number of optimizer steps taken.
+/// Fine-tunes every path of `scene` against its image. Traced polygons (the fallback's regions)
+/// start as their outlines fitted with one path ([`fitted_path`]), which only approximates
+/// them: if the best state found is worse than the scene was, the scene keeps its old shapes.
+/// Returns the number of optimizer steps taken (0 when a polygon cannot be fitted).
 pub fn finetune(scene: &mut Scene, options: &FinetuneOptions) -> usize {
     finetune_with_progress(scene, options, &mut |_| {})
 }
@@ -81,9 +83,14 @@ pub fn finetune_with_progress(
     let canvas: Vec<f32> = WHITE.iter().flat_map(|&v| std::iter::repeat_n(v, target.len() / 3)).collect();
     let Some(window) = Window::new(width, height, canvas, target) else { return 0 };
     let original = scene.scene();
-    let mut params: Vec<[f32; PARAMS]> = original.iter().map(|path| path.to_params()).collect();
+    let as_path = |shape: &Shape| match shape {
+        Shape::Path(path) => Some(*path),
+        Shape::Polygon(polygon) => fitted_path(polygon, (width, height)),
+    };
+    let Some(start) = original.iter().map(as_path).collect::<Option<Vec<Path>>>() else { return 0 };
+    let mut params: Vec<[f32; PARAMS]> = start.iter().map(|path| path.to_params()).collect();
     let mut adam = Adam::new(params.len());
-    let mut best = (f64::INFINITY, original.clone());
+    let mut best = (f64::INFINITY, start);
     let total_steps = match options.budget {
         Budget::Steps(steps) => Some(steps),
         Budget::Seconds(_) => None,
@@ -115,9 +122,9 @@ pub fn finetune_with_progress(
         });
     }
     let before = scene.total_error();
-    scene.set_paths(&best.1);
+    scene.set_shapes(&best.1.into_iter().map(Shape::from).collect::<Vec<_>>());
     if scene.total_error() > before {
-        scene.set_paths(&original);
+        scene.set_shapes(&original);
     }
     let values = 3.0 * f64::from(width) * f64::from(height);
     on_step(&Progress {

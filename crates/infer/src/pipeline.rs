@@ -84,12 +84,28 @@ pub struct Vectorization {
 /// and one rendering.
 const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
 
-/// How [`choose_segmentation`]'s candidates are made: merged by colour as `point` makes them (if
-/// it oversegments), then plain SLIC at each of [`PLAIN_COMPACTNESS`] × `compactness`.
+/// The candidate of [`choose_segmentation`] whose regions take any shape: SLIC for this many
+/// times the regions at a third of the compactness, merged by colour with no floor on
+/// compactness, so that regions follow the image's colour edges as far as the count allows.
+/// Traced exactly, on data/eval at 500 paths, they draw photos at 25.5 dB (LPIPS 0.28) and
+/// emoji at 36.6 dB (0.023), against 23.2 dB (0.43) and 27.9 dB (0.09) for the operating
+/// point's merged and plain SLIC (the same with 8 or 16 times: 24.3–24.7 dB on photos).
+const FREE_OVERSEGMENT: f32 = 64.0;
+
+/// How [`choose_segmentation`]'s candidates are made: merged freely ([`FREE_OVERSEGMENT`]),
+/// merged by colour as `point` makes them (if it oversegments), then plain SLIC at each of
+/// [`PLAIN_COMPACTNESS`] × `compactness`.
 fn candidates(point: &OperatingPoint, compactness: f32) -> impl Iterator<Item = SegmentOptions> {
+    let free = SegmentOptions {
+        compactness: compactness / 3.0,
+        oversegment: FREE_OVERSEGMENT,
+        min_compactness: 0.0,
+    };
     let plain = OperatingPoint { oversegment: 1.0, ..*point };
     let merged = (point.oversegment > 1.0).then(|| point.segment_options(compactness));
-    merged.into_iter().chain(PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction)))
+    std::iter::once(free)
+        .chain(merged)
+        .chain(PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction)))
 }
 
 /// `image` split into `regions` superpixels, of the candidates the one whose fallback drawing
@@ -289,8 +305,8 @@ mod tests {
         let candidates: Vec<SegmentOptions> = candidates(&point, 30.0).collect();
         assert_eq!(
             candidates.len(),
-            1 + PLAIN_COMPACTNESS.len(),
-            "the merged candidate, then the plain ones"
+            2 + PLAIN_COMPACTNESS.len(),
+            "the free and the merged candidates, then the plain ones"
         );
         let errors: Vec<f64> = candidates
             .iter()

@@ -55,7 +55,11 @@ pub fn draw_refinement(
                 let path = crop_to_image(path, crop, width, height);
                 let path = scene.fit_colour(&path, Scope::All).unwrap_or(path);
                 if scene
-                    .try_push(Placed { path, region: Some(region), origin: Origin::Refine }, Scope::All, 0.0)
+                    .try_push(
+                        Placed { shape: path.into(), region: Some(region), origin: Origin::Refine },
+                        Scope::All,
+                        0.0,
+                    )
                     .is_some()
                 {
                     kept += 1;

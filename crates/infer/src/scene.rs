@@ -8,7 +8,7 @@
 
 use image::{Rgb, Rgb32FImage};
 use model::ModelConfig;
-use raster::{Path, coverage_exact_window, paint_exact};
+use raster::{Filled, Path, Shape, coverage_exact_window, paint_exact};
 use superpixel::{BoundingBox, RegionCrop, Segmentation};
 use tiny_skia::{IntRect, Pixmap};
 
@@ -40,11 +40,11 @@ impl Origin {
     }
 }
 
-/// A path of the result, the superpixel it was drawn for and the stage that drew it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A shape of the result, the superpixel it was drawn for and the stage that drew it.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Placed {
-    /// The path, in the image's unit square.
-    pub path: Path,
+    /// The shape, in the image's unit square.
+    pub shape: Shape,
     /// Its region in the segmentation (`None` for the background).
     pub region: Option<u32>,
     /// The stage that drew it.
@@ -99,9 +99,9 @@ impl Scene {
         &self.paths
     }
 
-    /// The paths alone, in painter's order.
-    pub fn scene(&self) -> Vec<Path> {
-        self.paths.iter().map(|placed| placed.path).collect()
+    /// The shapes alone, in painter's order.
+    pub fn scene(&self) -> Vec<Shape> {
+        self.paths.iter().map(|placed| placed.shape.clone()).collect()
     }
 
     /// Number of paths.
@@ -127,11 +127,11 @@ impl Scene {
     /// Paints `placed` over everything drawn so far and keeps it; false (nothing kept) if the
     /// path cannot be drawn or lies wholly outside the canvas.
     pub fn push(&mut self, placed: Placed) -> bool {
-        if self.pixel_box(&placed.path).is_none() {
+        if self.pixel_box(&placed.shape).is_none() {
             return false;
         }
         let size = self.size();
-        let painted = paint_exact(&mut self.canvas, &placed.path, size, (0, 0));
+        let painted = paint_exact(&mut self.canvas, &placed.shape, size, (0, 0));
         if painted {
             self.paths.push(placed);
         }
@@ -142,11 +142,11 @@ impl Scene {
     /// over the `scope` pixels of its box drops by more than `min_gain`; otherwise the canvas
     /// is restored. Returns how much it dropped when the path was kept, `None` otherwise.
     pub fn try_push(&mut self, placed: Placed, scope: Scope<'_>, min_gain: f64) -> Option<f64> {
-        let bbox = self.pixel_box(&placed.path)?;
+        let bbox = self.pixel_box(&placed.shape)?;
         let saved = self.save(bbox);
         let before = self.error(bbox, scope);
         let size = self.size();
-        if !paint_exact(&mut self.canvas, &placed.path, size, (0, 0)) {
+        if !paint_exact(&mut self.canvas, &placed.shape, size, (0, 0)) {
             return None;
         }
         let gain = before - self.error(bbox, scope);
@@ -236,15 +236,15 @@ impl Scene {
         &self.canvas
     }
 
-    /// Replaces every path (same count, same regions and stages) by `paths`, e.g. after
+    /// Replaces every shape (same count, same regions and stages) by `shapes`, e.g. after
     /// fine-tuning, and renders the canvas again.
     ///
     /// # Panics
-    /// If the number of paths differs.
-    pub fn set_paths(&mut self, paths: &[Path]) {
-        assert_eq!(paths.len(), self.paths.len(), "the scene keeps its path count");
-        for (placed, path) in self.paths.iter_mut().zip(paths) {
-            placed.path = *path;
+    /// If the number of shapes differs.
+    pub fn set_shapes(&mut self, shapes: &[Shape]) {
+        assert_eq!(shapes.len(), self.paths.len(), "the scene keeps its path count");
+        for (placed, shape) in self.paths.iter_mut().zip(shapes) {
+            placed.shape = shape.clone();
         }
         self.repaint();
     }
@@ -254,7 +254,7 @@ impl Scene {
         self.canvas.fill(tiny_skia::Color::TRANSPARENT);
         let size = self.size();
         for placed in &self.paths {
-            paint_exact(&mut self.canvas, &placed.path, size, (0, 0));
+            paint_exact(&mut self.canvas, &placed.shape, size, (0, 0));
         }
     }
 
@@ -292,9 +292,9 @@ impl Scene {
         (self.target.width(), self.target.height())
     }
 
-    /// The pixels a path can change: its control points' bounds, widened by a pixel for
-    /// anti-aliasing, within the canvas; `None` when that is empty or not finite.
-    pub fn pixel_box(&self, path: &Path) -> Option<BoundingBox> {
+    /// The pixels a shape can change: its bounds, widened by a pixel for anti-aliasing, within
+    /// the canvas; `None` when that is empty or not finite.
+    pub fn pixel_box(&self, path: &impl Filled) -> Option<BoundingBox> {
         let (width, height) = self.size();
         let [x0, y0, x1, y1] = path.pixel_box(width, height)?;
         Some(BoundingBox { x0, y0, x1, y1 })
@@ -342,17 +342,18 @@ mod tests {
         })
     }
 
-    fn square(lo: [f32; 2], hi: [f32; 2], color: [f32; 3]) -> Placed {
-        let path =
-            Path::quadrilateral([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], color, 1.0);
-        Placed { path, region: Some(0), origin: Origin::Refine }
+    fn quad(lo: [f32; 2], hi: [f32; 2], color: [f32; 3]) -> Path {
+        Path::quadrilateral([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], color, 1.0)
     }
 
-    /// The whole image's error after painting `placed` in `color` over `scene`.
-    fn error_with(scene: &Scene, mut placed: Placed, color: [f32; 3]) -> f64 {
+    fn square(lo: [f32; 2], hi: [f32; 2], color: [f32; 3]) -> Placed {
+        Placed { shape: quad(lo, hi, color).into(), region: Some(0), origin: Origin::Refine }
+    }
+
+    /// The whole image's error after painting `path` in `color` over `scene`.
+    fn error_with(scene: &Scene, path: Path, color: [f32; 3]) -> f64 {
         let mut trial = scene.clone();
-        placed.path.color = color;
-        trial.push(placed);
+        trial.push(Placed { shape: Path { color, ..path }.into(), region: Some(0), origin: Origin::Refine });
         trial.total_error()
     }
 
@@ -363,15 +364,13 @@ mod tests {
         let mut scene = Scene::new(image, segmentation);
         assert!(scene.push(square([0.0, 0.0], [1.0, 1.0], [0.5; 3])));
         // Over the flat red half, pixel-aligned: exactly its colour.
-        let red =
-            scene.fit_colour(&square([0.0, 0.0], [0.5, 1.0], [0.0, 0.0, 1.0]).path, Scope::All).unwrap();
+        let red = scene.fit_colour(&quad([0.0, 0.0], [0.5, 1.0], [0.0, 0.0, 1.0]), Scope::All).unwrap();
         for (c, want) in red.color.iter().zip([0.9, 0.2, 0.1]) {
             assert!((c - want).abs() < 1e-4, "{:?}", red.color);
         }
         // Half transparent, straddling both halves, edges mid-pixel: no colour nearby does better.
-        let mut straddling = square([0.3, 0.1], [0.77, 0.83], [0.0; 3]);
-        straddling.path.alpha = 0.5;
-        let fitted = scene.fit_colour(&straddling.path, Scope::All).unwrap();
+        let straddling = Path { alpha: 0.5, ..quad([0.3, 0.1], [0.77, 0.83], [0.0; 3]) };
+        let fitted = scene.fit_colour(&straddling, Scope::All).unwrap();
         let best = error_with(&scene, straddling, fitted.color);
         for c in 0..3 {
             for step in [-0.02, 0.02] {
@@ -382,7 +381,7 @@ mod tests {
             }
         }
         // Off the canvas: nothing to fit.
-        assert!(scene.fit_colour(&square([2.0, 2.0], [3.0, 3.0], [0.0; 3]).path, Scope::All).is_none());
+        assert!(scene.fit_colour(&quad([2.0, 2.0], [3.0, 3.0], [0.0; 3]), Scope::All).is_none());
     }
 
     #[test]

@@ -5,12 +5,13 @@ use burn::tensor::Device;
 use image::{Rgb, Rgb32FImage};
 use infer::coarse::{CoarseBudget, draw_coarse};
 use infer::decode::load;
-use infer::fallback::FallbackDrawing;
+use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
 use infer::metrics::psnr;
 use infer::models::{Models, bundled};
 use infer::refine::draw_refinement;
 use infer::scene::{Origin, Scene};
+use raster::Shape;
 use superpixel::{SegmentOptions, segment};
 
 fn images() -> Vec<Rgb32FImage> {
@@ -91,6 +92,18 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let drawing = FallbackDrawing::new(&image, &segmentation);
     let no_coarse = CoarseBudget { paths: 0, total: regions + 1 };
     draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);
+    // Fine-tuning moves paths: a drawing of paths alone (the traced regions, each fitted with
+    // one path, as fine-tuning itself starts from them) is what it must improve on.
+    let size = image.dimensions();
+    let paths: Vec<Shape> = scene
+        .scene()
+        .iter()
+        .map(|shape| match shape {
+            Shape::Path(path) => Shape::Path(*path),
+            Shape::Polygon(polygon) => Shape::Path(fitted_path(polygon, size).unwrap()),
+        })
+        .collect();
+    scene.set_shapes(&paths);
     let before = psnr(&scene.canvas_image(), &image);
 
     let mut reports: Vec<Progress> = Vec::new();

@@ -1,12 +1,12 @@
-//! The exact renderer: tiny-skia's anti-aliased scanline fill of the true cubic Béziers.
+//! The exact renderer: tiny-skia's anti-aliased scanline fill of the true shapes.
 //!
 //! Used for previews, metrics and as ground truth for the soft rasterizer. Same layout and
 //! painter's order as [`crate::render_soft`], nonzero fill rule, linear (non-gamma) blending.
 
 use image::RgbImage;
-use tiny_skia::{Color, FillRule, Mask, Paint, PathBuilder, Pixmap, Transform};
+use tiny_skia::{Color, FillRule, Mask, Paint, Pixmap, Transform};
 
-use crate::path::{Path, SEGMENTS};
+use crate::shape::Filled;
 
 /// Renders `paths` (unit-square coordinates) to a `width × height` RGB image over `background`.
 ///
@@ -15,7 +15,7 @@ use crate::path::{Path, SEGMENTS};
 ///
 /// # Panics
 /// If `width` or `height` is zero.
-pub fn render_exact(paths: &[Path], width: u32, height: u32, background: [f32; 3]) -> RgbImage {
+pub fn render_exact<F: Filled>(paths: &[F], width: u32, height: u32, background: [f32; 3]) -> RgbImage {
     let mut pixmap = Pixmap::new(width, height).expect("render_exact needs a non-empty canvas");
     pixmap.fill(opaque(background));
     for path in paths {
@@ -31,10 +31,15 @@ pub fn render_exact(paths: &[Path], width: u32, height: u32, background: [f32; 3
 /// anti-aliased edges (tiny-skia's coverage strips depend on the pixmap; measured: 43 dB, at
 /// most 19 levels). Returns false, painting
 /// nothing, for a path that cannot be drawn (α ≤ 0, a non-finite number).
-pub fn paint_exact(pixmap: &mut Pixmap, path: &Path, canvas: (u32, u32), origin: (u32, u32)) -> bool {
+pub fn paint_exact(
+    pixmap: &mut Pixmap,
+    path: &(impl Filled + ?Sized),
+    canvas: (u32, u32),
+    origin: (u32, u32),
+) -> bool {
     let Some(outline) = skia_outline(path) else { return false };
-    let [r, g, b] = path.color.map(|c| c.clamp(0.0, 1.0));
-    let Some(color) = Color::from_rgba(r, g, b, path.alpha.clamp(0.0, 1.0)) else { return false };
+    let [r, g, b] = path.color().map(|c| c.clamp(0.0, 1.0));
+    let Some(color) = Color::from_rgba(r, g, b, path.alpha().clamp(0.0, 1.0)) else { return false };
     let mut paint = Paint::default();
     paint.set_color(color);
     pixmap.fill_path(&outline, &paint, FillRule::Winding, canvas_transform(canvas, origin), None);
@@ -51,7 +56,7 @@ fn canvas_transform(canvas: (u32, u32), origin: (u32, u32)) -> Transform {
 
 /// The exact anti-aliased coverage (0–255 per pixel, row-major) of `path` alone on a `width ×
 /// height` canvas, opacity ignored; `None` for a path that cannot be drawn or an empty canvas.
-pub fn coverage_exact(path: &Path, width: u32, height: u32) -> Option<Mask> {
+pub fn coverage_exact(path: &(impl Filled + ?Sized), width: u32, height: u32) -> Option<Mask> {
     coverage_exact_window(path, (width, height), (0, 0), (width, height))
 }
 
@@ -59,42 +64,24 @@ pub fn coverage_exact(path: &Path, width: u32, height: u32) -> Option<Mask> {
 /// top-left pixel is `origin` (placed as [`paint_exact`] places paths), for the cost of the
 /// window.
 pub fn coverage_exact_window(
-    path: &Path,
+    path: &(impl Filled + ?Sized),
     canvas: (u32, u32),
     origin: (u32, u32),
     size: (u32, u32),
 ) -> Option<Mask> {
-    let outline = outline(path)?;
+    let outline = path.geometry()?;
     let mut mask = Mask::new(size.0, size.1)?;
     mask.fill_path(&outline, FillRule::Winding, true, canvas_transform(canvas, origin));
     Some(mask)
 }
 
-/// The closed outline of a drawable path in unit-square coordinates (scale it to the canvas with
-/// a transform), or `None` for an invisible or non-finite one.
-pub fn skia_outline(path: &Path) -> Option<tiny_skia::Path> {
-    if !path.alpha.is_finite() || path.alpha <= 0.0 {
+/// The closed outline of a drawable shape in unit-square coordinates (scale it to the canvas
+/// with a transform), or `None` for an invisible or non-finite one.
+pub fn skia_outline(path: &(impl Filled + ?Sized)) -> Option<tiny_skia::Path> {
+    if !path.alpha().is_finite() || path.alpha() <= 0.0 {
         return None;
     }
-    outline(path)
-}
-
-/// [`skia_outline`] whatever the path's opacity: where its coverage is, which the gradient of
-/// its opacity needs even while it is invisible.
-fn outline(path: &Path) -> Option<tiny_skia::Path> {
-    let finite = path.points.iter().flatten().chain(&path.color).all(|v| v.is_finite());
-    if !finite {
-        return None;
-    }
-    let mut builder = PathBuilder::new();
-    let [x, y] = path.points[0];
-    builder.move_to(x, y);
-    for j in 0..SEGMENTS {
-        let [_, [x1, y1], [x2, y2], [x, y]] = path.segment(j);
-        builder.cubic_to(x1, y1, x2, y2, x, y);
-    }
-    builder.close();
-    builder.finish()
+    path.geometry()
 }
 
 fn opaque([r, g, b]: [f32; 3]) -> Color {

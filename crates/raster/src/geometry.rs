@@ -4,6 +4,8 @@
 //! encloses and the fitting of outlines all take their weights from [`bernstein`].
 
 use crate::path::{Path, SEGMENTS};
+#[cfg(test)]
+use crate::shape::Filled;
 
 /// The cubic Bernstein weights at `t`: `[(1−t)³, 3(1−t)²t, 3(1−t)t², t³]`.
 pub fn bernstein(t: f32) -> [f32; 4] {
@@ -68,44 +70,6 @@ impl Path {
             })
             .sum();
         twice / 2.0
-    }
-
-    /// A rectangle that contains the whole path: the bounds of its control points (a cubic stays
-    /// inside the convex hull of its control points). Non-finite coordinates give non-finite
-    /// bounds.
-    pub fn bounds(&self) -> Bounds {
-        let mut bounds =
-            Bounds { x0: f32::INFINITY, y0: f32::INFINITY, x1: -f32::INFINITY, y1: -f32::INFINITY };
-        for &[x, y] in &self.points {
-            if !(x.is_finite() && y.is_finite()) {
-                return Bounds { x0: f32::NAN, y0: f32::NAN, x1: f32::NAN, y1: f32::NAN };
-            }
-            bounds = Bounds {
-                x0: bounds.x0.min(x),
-                y0: bounds.y0.min(y),
-                x1: bounds.x1.max(x),
-                y1: bounds.y1.max(y),
-            };
-        }
-        bounds
-    }
-}
-
-impl Path {
-    /// The pixels `[x0, x1) × [y0, y1)` (as `[x0, y0, x1, y1]`) the path can change on a
-    /// `width × height` canvas: its bounds, widened by a pixel for anti-aliasing, within the
-    /// canvas; `None` when that is empty or not finite.
-    pub fn pixel_box(&self, width: u32, height: u32) -> Option<[u32; 4]> {
-        let bounds = self.bounds();
-        let scale = |v: f32, size: u32| v * size as f32;
-        let (x0, y0) = (scale(bounds.x0, width).floor() - 1.0, scale(bounds.y0, height).floor() - 1.0);
-        let (x1, y1) = (scale(bounds.x1, width).ceil() + 1.0, scale(bounds.y1, height).ceil() + 1.0);
-        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
-            return None;
-        }
-        let clamp = |v: f32, size: u32| v.clamp(0.0, size as f32) as u32;
-        let [x0, y0, x1, y1] = [clamp(x0, width), clamp(y0, height), clamp(x1, width), clamp(y1, height)];
-        (x0 < x1 && y0 < y1).then_some([x0, y0, x1, y1])
     }
 }
 

@@ -16,6 +16,7 @@ use rayon::prelude::*;
 use crate::exact::coverage_exact_window;
 use crate::geometry::{bernstein, cubic_derivative, cubic_point};
 use crate::path::{PARAMS, POINTS, Path, SEGMENTS};
+use crate::shape::Filled;
 
 /// Outline samples per pixel of a cubic's control polygon (an upper bound of its length): two,
 /// so that every pixel the outline crosses is sampled.

@@ -9,6 +9,7 @@ mod fit;
 mod geometry;
 mod gradient;
 mod path;
+mod shape;
 mod shapes;
 mod soft;
 mod svg;
@@ -20,6 +21,7 @@ pub use fit::fit_outline;
 pub use geometry::{Bounds, bernstein, cubic_point};
 pub use gradient::Window;
 pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS};
+pub use shape::{Filled, Polygon, Shape};
 pub use shapes::{random_blob, random_scene};
 pub use soft::{
     SoftRasterOptions, coverage_soft, paint_soft, paint_soft_with_union, render_soft, render_soft_with_union,

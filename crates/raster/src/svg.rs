@@ -1,8 +1,8 @@
-//! SVG export: one `<path>` per visible path, in painter's order.
+//! SVG export: one `<path>` per visible shape, in painter's order.
 
 use std::fmt::Write;
 
-use crate::path::{Path, SEGMENTS};
+use crate::shape::Filled;
 
 /// Why a set of paths cannot be written as SVG.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -47,8 +47,8 @@ pub const MAX_DECIMALS: usize = 6;
 /// Paths with α ≤ 0 are invisible and left out; `fill-opacity` is written when α < 1; every path
 /// says `fill-rule="nonzero"` so all viewers fill self-intersections the way the renderers do.
 /// Colours and α are clamped to [0, 1]. Coordinates are written with 1/100 pixel precision.
-pub fn to_svg(
-    paths: &[Path],
+pub fn to_svg<F: Filled>(
+    paths: &[F],
     width: u32,
     height: u32,
     background: Option<[f32; 3]>,
@@ -63,8 +63,8 @@ pub fn to_svg(
 ///
 /// # Panics
 /// If `layers` is shorter than `paths` or `options.decimals` exceeds [`MAX_DECIMALS`].
-pub fn to_svg_with(
-    paths: &[Path],
+pub fn to_svg_with<F: Filled>(
+    paths: &[F],
     layers: &[Option<u32>],
     width: u32,
     height: u32,
@@ -86,11 +86,10 @@ pub fn to_svg_with(
     let number = |value: f32| number(value, options.decimals);
     let mut open: Option<u32> = None;
     for (index, path) in paths.iter().enumerate() {
-        let finite = path.points.iter().flatten().chain(&path.color).all(|v| v.is_finite());
-        if !finite || !path.alpha.is_finite() {
+        if !path.is_finite() {
             return Err(SvgError::NonFinite { index });
         }
-        if path.alpha <= 0.0 {
+        if path.alpha() <= 0.0 {
             continue;
         }
         if layers[index] != open {
@@ -102,16 +101,10 @@ pub fn to_svg_with(
             }
             open = layers[index];
         }
-        let point = |[x, y]: [f32; 2]| format!("{} {}", number(x * sx), number(y * sy));
-        let mut d = format!("M{}", point(path.points[0]));
-        for j in 0..SEGMENTS {
-            let [_, c1, c2, end] = path.segment(j);
-            let _ = write!(d, "C{} {} {}", point(c1), point(c2), point(end));
-        }
-        d.push('Z');
-        let _ = write!(svg, "<path d=\"{d}\" fill=\"{}\"", hex(path.color));
-        if path.alpha < 1.0 {
-            let _ = write!(svg, " fill-opacity=\"{}\"", number(path.alpha));
+        let d = path.svg_data([sx, sy], &number);
+        let _ = write!(svg, "<path d=\"{d}\" fill=\"{}\"", hex(path.color()));
+        if path.alpha() < 1.0 {
+            let _ = write!(svg, " fill-opacity=\"{}\"", number(path.alpha()));
         }
         svg.push_str(" fill-rule=\"nonzero\"/>\n");
     }
@@ -138,6 +131,7 @@ fn number(value: f32, decimals: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::path::Path;
 
     fn square(alpha: f32) -> Path {
         Path::quadrilateral([[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]], [1.0, 0.5, 0.0], alpha)
@@ -160,7 +154,7 @@ mod tests {
         let mut bad = square(1.0);
         bad.points[4][1] = f32::NAN;
         assert_eq!(to_svg(&[square(1.0), bad], 10, 10, None), Err(SvgError::NonFinite { index: 1 }));
-        assert!(matches!(to_svg(&[], 0, 10, None), Err(SvgError::EmptyCanvas { .. })));
+        assert!(matches!(to_svg::<Path>(&[], 0, 10, None), Err(SvgError::EmptyCanvas { .. })));
     }
 
     #[test]

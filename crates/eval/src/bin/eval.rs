@@ -225,7 +225,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                     Ok((rendered(&svg)?, seconds))
                 });
                 let seconds = drawn.as_ref().map_or(0.0, |(_, s)| *s);
-                let name = "fallback alone (fitted outlines, mean colour)";
+                let name = "fallback alone (traced regions, mean colour)";
                 record(budget, name, drawn.map(|(d, _)| d), seconds, None, &mut tiles);
             }
             if use_vtracer {
