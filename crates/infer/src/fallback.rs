@@ -74,7 +74,7 @@ pub fn painter_order(segmentation: &Segmentation) -> Vec<u32> {
     order
 }
 
-/// The fallback drawing of an image's segmentation: fitted once, then scored (choosing a
+/// The fallback drawing of an image's segmentation: traced once, then scored (choosing a
 /// segmentation) and drawn (the coarse stage starts from it).
 #[derive(Clone, Debug)]
 pub struct FallbackDrawing {
@@ -87,7 +87,7 @@ pub struct FallbackDrawing {
 }
 
 impl FallbackDrawing {
-    /// Fits every region of `segmentation` (in parallel) and the background of `image` under them.
+    /// Traces every region of `segmentation` (in parallel) and fits the background of `image` under them.
     pub fn new(image: &Rgb32FImage, segmentation: &Segmentation) -> Self {
         let order = painter_order(segmentation);
         let regions: Vec<Option<Shape>> =

@@ -80,16 +80,17 @@ pub struct Vectorization {
 /// the method's: less compact regions follow colour edges instead of staying round, which flat
 /// art rewards. On the 31 emoji of data/eval at the stored operating point, one extra candidate
 /// at 1/2 or 1/3 of 30 gains about 1 dB at 500 paths, these three 1.4 / 1.0 dB at 500 / 2000
-/// (docs/operating-point.md); 1/6 alone gained 0.3. Each candidate costs one SLIC, one fitting
-/// and one rendering.
+/// (docs/operating-point.md, measured when regions were fitted with one path); 1/6 alone gained
+/// 0.3. Each candidate costs one SLIC, one tracing and one rendering.
 const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
 
 /// The candidate of [`choose_segmentation`] whose regions take any shape: SLIC for this many
 /// times the regions at a third of the compactness, merged by colour with no floor on
 /// compactness, so that regions follow the image's colour edges as far as the count allows.
-/// Traced exactly, on data/eval at 500 paths, they draw photos at 25.5 dB (LPIPS 0.28) and
-/// emoji at 36.6 dB (0.023), against 23.2 dB (0.43) and 27.9 dB (0.09) for the operating
-/// point's merged and plain SLIC (the same with 8 or 16 times: 24.3–24.7 dB on photos).
+/// Only traced outlines draw such regions well. With it, the fallback alone draws data/eval's
+/// photos at 25.45 dB / LPIPS 0.281 and the first 12 emoji at 36.64 / 0.023 at 500 paths
+/// (docs/eval), against 22.95 / 0.427 and 27.47 / 0.072 with one fitted path per region of
+/// the earlier candidates. It is also the costliest candidate (most of `infer`'s time).
 const FREE_OVERSEGMENT: f32 = 64.0;
 
 /// How [`choose_segmentation`]'s candidates are made: merged freely ([`FREE_OVERSEGMENT`]),
@@ -108,14 +109,10 @@ fn candidates(point: &OperatingPoint, compactness: f32) -> impl Iterator<Item = 
         .chain(PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction)))
 }
 
-/// `image` split into `regions` superpixels, of the candidates the one whose fallback drawing
-/// draws it best: SLIC merged by colour as the operating point makes it (if it oversegments),
-/// and plain SLIC at `compactness` and at lower compactness ([`PLAIN_COMPACTNESS`]). Merged
-/// regions follow a photo's colours with fewer shapes, while on flat art they grow into shapes
-/// one path fits badly, and less compact plain regions follow its edges (data/eval: merging
-/// gains 0.8 dB on photos and loses 0.9 dB on emoji at 500 paths).
-/// Returns the chosen segmentation with its fallback drawing (fitted once: scoring a candidate
-/// costs its fitting and one rendering).
+/// `image` split into `regions` superpixels, of the candidates ([`candidates`]) the one whose
+/// fallback drawing draws it best (least squared error).
+/// Returns the chosen segmentation with its fallback drawing (traced once: scoring a candidate
+/// costs its tracing and one rendering).
 pub fn choose_segmentation(
     image: &Rgb32FImage,
     regions: usize,

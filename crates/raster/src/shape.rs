@@ -208,14 +208,6 @@ pub enum Shape {
 }
 
 impl Shape {
-    /// The path, if this is one.
-    pub fn as_path(&self) -> Option<&Path> {
-        match self {
-            Shape::Path(path) => Some(path),
-            Shape::Polygon(_) => None,
-        }
-    }
-
     fn filled(&self) -> &dyn Filled {
         match self {
             Shape::Path(path) => path,
@@ -283,9 +275,10 @@ mod tests {
     fn a_shape_is_what_it_wraps() {
         let path = Path::quadrilateral([[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]], [0.2; 3], 0.5);
         let shape = Shape::from(path);
-        assert_eq!(shape.as_path(), Some(&path));
+        assert_eq!(shape, Shape::Path(path));
         assert_eq!((shape.color(), shape.alpha(), shape.bounds()), (path.color, path.alpha, path.bounds()));
         let polygon = Polygon::new(vec![[0.1, 0.1], [0.9, 0.1], [0.9, 0.9]], [0.3; 3], 1.0).unwrap();
-        assert!(Shape::from(polygon).as_path().is_none());
+        let shape = Shape::from(polygon.clone());
+        assert_eq!((shape.color(), shape.bounds()), (polygon.color, polygon.bounds()));
     }
 }
