@@ -75,6 +75,8 @@ struct Args {
 
 /// One method's result on one image at one budget.
 struct Row {
+    /// The image's file name.
+    image: String,
     shapes: usize,
     /// Size of the SVG file (none for the pixel-exact mosaic, which is no SVG).
     bytes: Option<usize>,
@@ -159,6 +161,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         evaluated += 1;
         let image = &loaded.image;
         let (width, height) = image.dimensions();
+        let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let png = scratch.join("input.png");
         write_png(&png, &to_rgb8(image))?;
         let mut tiles = vec![("input".to_string(), image.clone())];
@@ -171,6 +174,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             match drawn {
                 Ok(Drawn { image: drawn, shapes, bytes }) => {
                     let row = Row {
+                        image: name.clone(),
                         shapes,
                         bytes,
                         mse: mse(&drawn, image),
@@ -365,6 +369,7 @@ fn report(
         }
         text.push('\n');
     }
+    text.push_str(&per_image(results));
     for note in notes {
         let _ = writeln!(text, "- {note}");
     }
@@ -375,6 +380,46 @@ fn report(
         sheet.display(),
         columns.join(" | ")
     );
+    text
+}
+
+/// Each image's PSNR / LPIPS per method, one table per budget: where a mean hides one image
+/// that loses.
+fn per_image(results: &BTreeMap<(usize, String), Vec<Row>>) -> String {
+    let mut text = String::from("## Per image (PSNR dB / LPIPS)\n");
+    let mut budgets: Vec<usize> = results.keys().map(|(budget, _)| *budget).collect();
+    budgets.dedup();
+    for budget in budgets {
+        let methods: Vec<(&String, &Vec<Row>)> =
+            results.iter().filter(|((b, _), _)| *b == budget).map(|((_, m), rows)| (m, rows)).collect();
+        let mut images: Vec<&str> =
+            methods.iter().flat_map(|(_, rows)| rows.iter().map(|r| r.image.as_str())).collect();
+        images.sort_unstable();
+        images.dedup();
+        let title =
+            if budget == 0 { "each method's own budget".to_string() } else { format!("{budget} paths") };
+        let names: Vec<&str> = methods.iter().map(|(m, _)| m.as_str()).collect();
+        let _ = writeln!(
+            text,
+            "\n{title}:\n\n| image | {} |\n| --- |{}",
+            names.join(" | "),
+            " ---: |".repeat(names.len())
+        );
+        for image in images {
+            let cells: Vec<String> = methods
+                .iter()
+                .map(|(_, rows)| match rows.iter().find(|r| r.image == image) {
+                    Some(row) => match row.lpips {
+                        Some(lpips) => format!("{:.2} / {lpips:.4}", row.psnr),
+                        None => format!("{:.2}", row.psnr),
+                    },
+                    None => "—".to_string(),
+                })
+                .collect();
+            let _ = writeln!(text, "| {image} | {} |", cells.join(" | "));
+        }
+    }
+    text.push('\n');
     text
 }
 
