@@ -1,6 +1,6 @@
 //! The simplest drawing of an image split into superpixels: one path under everything, then
-//! every region's outline, traced along its pixel edges, in its mean colour: the superpixels
-//! exactly, as one shape each.
+//! every region's outline, traced along its pixel edges with its staircases cut, in its mean
+//! colour: the superpixels as one polygon each.
 //!
 //! Every result starts from it, so no pixel is left uncovered whatever the later stages keep,
 //! and a region's learned paths are kept only where they beat it.
