@@ -3,11 +3,13 @@
 //! This crate gathers the workspace's crates under one name and hosts the cross-crate tests in
 //! `tests/`. Each stage has its own crate:
 //!
+//! - [`common`]: pixel boxes, image decoding, quality measures, atomic writes, progress bars;
 //! - [`raster`]: the path layout, the differentiable soft rasterizer, the exact renderer, SVG;
 //! - [`dpw`]: the training objectives (normalized L2, boundary, path efficiency, DPW);
 //! - [`superpixel`]: SLIC, region crops and paste-back;
 //! - [`model`]: the coarse and refinement networks and their checkpoints;
 //! - [`train`]: `train-coarse` and `train-refine`;
-//! - [`infer`]: `infer`, the inference stages over one scene, fine-tuning and metrics.
+//! - [`infer`]: `infer` and the one call behind it ([`infer::run`]): the inference stages over
+//!   one scene, fine-tuning, the report.
 
-pub use {dpw, infer, model, raster, superpixel, train};
+pub use {common, dpw, infer, model, raster, superpixel, train};

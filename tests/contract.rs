@@ -42,7 +42,7 @@ fn training_and_inference_build_identical_region_inputs() {
         // The contract's settings were applied: the crop's rectangle holds the padding and
         // cells outside the region hold the fill.
         let bbox = segmentation.regions[region as usize].bbox.padded(5, 80, 56);
-        assert_eq!(inferred.transform.x, bbox.x0 as f32);
+        assert_eq!(inferred.transform.x, bbox.x0() as f32);
         assert!(inferred.mask.iter().zip(&inferred.pixels).all(|(&m, &p)| m == 1.0 || p == -0.5));
     }
 }

@@ -5,11 +5,16 @@ use burn::tensor::module::max_pool2d;
 use burn::tensor::ops::MaxPoolOptions;
 use raster::{PathBatch, SoftRasterOptions, render_soft_with_union};
 
+/// How far (pixels) a path may reach past its superpixel before the boundary loss counts it:
+/// the reference's 2, room for a path to cover the superpixel's edge and anti-alias it. What
+/// training uses by default and evaluation measures spill against.
+pub const BOUNDARY_DILATION: usize = 2;
+
 /// Options of [`boundary_loss`].
 #[derive(Clone, Debug)]
 pub struct BoundaryOptions {
-    /// The mask is dilated by this many pixels first (a (2r+1)² max filter; the reference uses 2),
-    /// so paths may overlap the superpixel's edge slightly, as they must to anti-alias it.
+    /// The mask is dilated by this many pixels first (a (2r+1)² max filter;
+    /// [`BOUNDARY_DILATION`] by default), so paths may overlap the superpixel's edge slightly.
     pub dilation: usize,
     /// How the white paths are rasterized (the background is ignored: black is used).
     pub raster: SoftRasterOptions,
@@ -17,7 +22,7 @@ pub struct BoundaryOptions {
 
 impl Default for BoundaryOptions {
     fn default() -> Self {
-        Self { dilation: 2, raster: SoftRasterOptions::default() }
+        Self { dilation: BOUNDARY_DILATION, raster: SoftRasterOptions::default() }
     }
 }
 

@@ -13,7 +13,7 @@ mod reconstruction;
 mod scan;
 mod warping;
 
-pub use boundary::{BoundaryOptions, boundary_loss, boundary_loss_of_union, dilate};
+pub use boundary::{BOUNDARY_DILATION, BoundaryOptions, boundary_loss, boundary_loss_of_union, dilate};
 pub use efficiency::{path_efficiency_loss, visibility};
 pub use reconstruction::{masked_l2, multiscale_masked_l2};
 pub use warping::{PathDistance, dpw, pairwise_sq_distance, soft_dtw};

@@ -200,7 +200,7 @@ mod tests {
         let lpips = Lpips::load(&folder, &Device::flex()).unwrap_or_else(|err| panic!("{err}"));
         let reference: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(folder.join("reference.json")).unwrap()).unwrap();
-        let (a, b) = infer::metrics::test_pair(80, 64);
+        let (a, b) = common::metrics::test_pair(80, 64);
         let expected = reference["lpips"].as_f64().unwrap();
         let got = lpips.distance(&a, &b);
         assert!((got - expected).abs() < 1e-4 * expected.max(1.0), "{got} vs {expected}");

@@ -1,14 +1,12 @@
 //! Other ways to vectorize an image, for comparison: vtracer, potrace on colour layers, filling
-//! superpixels with their mean colour (pixel-exact), and SuperSVG's own fallback drawing alone.
-//! Plus SVG rendering and path counting that treat every method alike.
+//! superpixels with their mean colour (pixel-exact). Plus SVG rendering and path counting that
+//! treat every method alike. (SuperSVG's fallback drawing alone is a job of `infer::run`.)
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
 use image::{Rgb, Rgb32FImage};
-use model::OperatingPoint;
-use raster::Shape;
 use superpixel::{SlicError, SlicOptions, slic};
 
 /// Why a method could not draw an image.
@@ -203,32 +201,33 @@ pub fn potrace_colors(
     }
 }
 
+/// The pixel-exact mosaic of [`mean_color_superpixels`].
+pub struct Mosaic {
+    /// Every pixel in its region's mean colour.
+    pub image: Rgb32FImage,
+    /// Regions.
+    pub regions: usize,
+    /// Seconds it took.
+    pub seconds: f64,
+}
+
 /// Every superpixel of a SLIC segmentation into `regions` regions, filled with its mean colour:
 /// the baseline a region-based vectorizer must beat.
-pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> (Rgb32FImage, usize, f64) {
+pub fn mean_color_superpixels(image: &Rgb32FImage, regions: usize) -> Result<Mosaic, PeerError> {
     let started = Instant::now();
     let options = SlicOptions {
         n_segments: regions.clamp(1, (image.width() * image.height()) as usize),
         ..Default::default()
     };
-    let segmentation = slic(image, &options).expect("valid image and region count");
+    let segmentation = slic(image, &options)?;
     let filled = Rgb32FImage::from_fn(image.width(), image.height(), |x, y| {
         Rgb(segmentation.regions[segmentation.label(x, y) as usize].mean_color)
     });
-    (filled, segmentation.regions.len(), started.elapsed().as_secs_f64())
-}
-
-/// SuperSVG's fallback drawing alone with at most `paths` paths: the background and `paths − 1`
-/// superpixels (made and chosen as the default operating point makes them), each its outline traced
-/// along its pixels, in its mean colour. What the pipeline starts from, and what its learned stages must
-/// improve on.
-pub fn fallback_mosaic(image: &Rgb32FImage, paths: usize) -> Result<(Vec<Shape>, f64), PeerError> {
-    let started = Instant::now();
-    let regions = paths.saturating_sub(1).clamp(1, (image.width() * image.height()) as usize);
-    let point = OperatingPoint::default();
-    let (_, drawing) =
-        infer::pipeline::choose_segmentation(image, regions, &point, SlicOptions::default().compactness)?;
-    Ok((drawing.paths(), started.elapsed().as_secs_f64()))
+    Ok(Mosaic {
+        image: filled,
+        regions: segmentation.regions.len(),
+        seconds: started.elapsed().as_secs_f64(),
+    })
 }
 
 /// The result of `run` with the most shapes not above `target`, over knob values `low..=high`
@@ -325,8 +324,8 @@ mod tests {
                 20,
                 |x, _| if x < 20 { Rgb([1.0, 0.0, 0.0]) } else { Rgb([0.0, 0.0, 1.0]) },
             );
-        let (filled, regions, _) = mean_color_superpixels(&image, 2);
-        assert!(regions >= 2);
-        assert!(infer::metrics::psnr(&filled, &image) > 20.0);
+        let mosaic = mean_color_superpixels(&image, 2).unwrap();
+        assert!(mosaic.regions >= 2);
+        assert!(common::psnr(&mosaic.image, &image) > 20.0);
     }
 }

@@ -86,3 +86,43 @@ fn report_has_svg_sizes_and_the_auto_budget() {
     assert_eq!(row("SLIC regions, mean colour"), "—", "{report}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// eval draws SuperSVG through the call `infer` makes: the SVGs it measures are, byte for byte,
+/// the files `infer` writes with the same settings (the `infer` program writes what
+/// `infer::run` returns; crates/infer/tests/cli.rs checks that side).
+#[test]
+fn svgs_are_what_infer_writes() {
+    let dir = std::env::temp_dir().join(format!("supersvg-eval-svgs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let picture = image::RgbImage::from_fn(60, 40, |x, y| image::Rgb([(x * 4) as u8, (y * 6) as u8, 120]));
+    picture.save(dir.join("a.png")).unwrap();
+    let (out, svgs) = (dir.join("report.md"), dir.join("svgs"));
+    let result = Command::new(EVAL)
+        .arg(&dir)
+        .args(["--out", out.to_str().unwrap(), "--svgs", svgs.to_str().unwrap()])
+        .args(["--paths", "24", "--size", "48", "--peers", ""])
+        .env_remove("SUPERSVG_MODELS")
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+
+    let device = burn::tensor::Device::flex();
+    let (models, _, _) = eval::cli::load_models(None, None, &device).unwrap();
+    let image = common::decode::load(&dir.join("a.png"), 48).unwrap();
+    let budgets = [
+        ("a-b-24.svg", infer::PathBudget::Count(24)),
+        ("a-auto.svg", infer::PathBudget::Auto(infer::AutoBudget::default())),
+    ];
+    for (file, paths) in budgets {
+        let job = infer::Job { paths, ..infer::Job::default() };
+        let svg = infer::run(&models, &image, &job, &device).unwrap().svg;
+        let written = std::fs::read_to_string(svgs.join(file)).unwrap();
+        assert!(written == svg, "{file} differs from infer's SVG");
+        assert!(
+            written.contains("viewBox=\"0 0 60 40\"") && written.contains("<g class=\"region-"),
+            "{written}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

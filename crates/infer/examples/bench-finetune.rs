@@ -13,11 +13,11 @@ use std::time::Instant;
 
 use burn::tensor::Device;
 use clap::Parser;
-use infer::decode::load;
+use common::decode::load;
+use common::psnr;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
-use infer::metrics::psnr;
-use infer::models::{Models, bundled};
-use infer::pipeline::{Options, vectorize};
+use infer::models::bundled;
+use infer::{Job, Models, PathBudget, run};
 
 /// Time SuperSVG-F on one image.
 #[derive(Parser, Debug)]
@@ -44,10 +44,12 @@ const SECONDS: [f64; 3] = [2.0, 5.0, 10.0];
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let device = Device::flex();
-    let image = load(&args.image, args.size)?.image;
+    let loaded = load(&args.image, args.size)?;
+    let image = &loaded.image;
     let models = Models::load(&bundled("coarse.ckpt")?, Some(&bundled("refine.ckpt")?), &device)?;
-    let drawn = vectorize(&models, &image, &Options { paths: args.paths, ..Options::default() }, &device)?;
-    let psnr_b = psnr(&drawn.scene.canvas_image(), &image);
+    let drawn =
+        run(&models, &loaded, &Job { paths: PathBudget::Count(args.paths), ..Job::default() }, &device)?;
+    let psnr_b = drawn.report.psnr;
     println!("SuperSVG-B: {} paths, {psnr_b:.2} dB", drawn.scene.len());
     let mut after = serde_json::Map::new();
     let mut rate = (0.0, 0.0);
@@ -63,7 +65,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let started = Instant::now();
         let steps = finetune(&mut scene, &options);
         let spent = started.elapsed().as_secs_f64();
-        let tuned = psnr(&scene.canvas_image(), &image);
+        let tuned = psnr(&scene.canvas_image(), image);
         println!("{seconds} s: {steps} steps in {spent:.2} s, {tuned:.2} dB ({:+.2})", tuned - psnr_b);
         after.insert(format!("{seconds}"), tuned.into());
         rate = (steps as f64 / spent, 1000.0 * spent / steps.max(1) as f64);

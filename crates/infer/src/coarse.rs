@@ -7,7 +7,7 @@ use raster::Path;
 use superpixel::{RegionCrop, worst_first};
 
 use crate::fallback::FallbackDrawing;
-use crate::scene::{Origin, Placed, Scene, Scope};
+use crate::scene::{Origin, Placed, Scene, Scope, region_errors};
 
 /// How many paths the coarse stage may draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,7 +21,8 @@ pub struct CoarseBudget {
 
 /// Draws `scene` (which must be empty) from `fallback`, the fallback drawing of its
 /// segmentation: the background path, then for every region in painter's order its fallback
-/// path and the E_c paths that draw it better.
+/// path and the E_c paths that draw it better. With no E_c paths to draw, the scene takes the
+/// fallback drawing's rendering as it is.
 ///
 /// E_c draws the regions the fallback drawing gets most wrong, as many as it may keep paths:
 /// a model's path pays where a flat region errs most. Each visible path, in the least-squares
@@ -45,30 +46,36 @@ pub fn draw_coarse(
 ) {
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
     let spare = budget.paths.min(budget.total.saturating_sub(1 + fallback.order.len()));
-    let mut proposals = vec![Vec::new(); fallback.order.len()];
-    if spare > 0 {
-        let chosen = worst_regions(scene, &fallback, spare);
-        let crops: Vec<RegionCrop> = chosen.iter().map(|&r| scene.region_crop(config, r)).collect();
-        let proposed = propose(coarse, &crops, scene.target().dimensions(), batch, device);
-        for (&region, paths) in chosen.iter().zip(proposed) {
-            proposals[region as usize] = paths;
-        }
+    let fallback_only = |scene: &Scene, fallback: FallbackDrawing| {
+        let (target, segmentation) = (scene.target().clone(), scene.segmentation().clone());
+        Scene::drawn(target, segmentation, fallback.placed(), fallback.canvas)
+    };
+    if spare == 0 {
+        *scene = fallback_only(scene, fallback);
+        return;
     }
-    let FallbackDrawing { order, regions: fallbacks, background } = fallback;
+    let mut proposals = vec![Vec::new(); fallback.order.len()];
+    let chosen = worst_regions(scene, &fallback, spare);
+    let crops: Vec<RegionCrop> = chosen.iter().map(|&r| scene.region_crop(config, r)).collect();
+    let proposed = propose(coarse, &crops, scene.target().dimensions(), batch, device);
+    for (&region, paths) in chosen.iter().zip(proposed) {
+        proposals[region as usize] = paths;
+    }
+    let (order, fallbacks, background) = (&fallback.order, &fallback.regions, fallback.background);
     scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background });
     let mut painted = vec![false; order.len()];
     // (index in the scene, error it took away) of every E_c path that helped.
     let mut gains: Vec<(usize, f64)> = Vec::new();
-    for (&region, fallback) in order.iter().zip(fallbacks) {
+    for (&region, shape) in order.iter().zip(fallbacks) {
         painted[region as usize] = true;
-        if let Some(shape) = fallback {
-            scene.push(Placed { shape, region: Some(region), origin: Origin::Fallback });
+        if let Some(shape) = shape {
+            scene.push(Placed { shape: shape.clone(), region: Some(region), origin: Origin::Fallback });
         }
         for path in std::mem::take(&mut proposals[region as usize]) {
             let scope = Scope::Regions(&painted);
             let path = scene.fit_colour(&path, scope).unwrap_or(path);
             let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Coarse };
-            if let Some(gain) = scene.try_push(placed, scope, 0.0) {
+            if let Some(gain) = scene.try_push(placed, scope) {
                 gains.push((scene.len() - 1, gain));
             }
         }
@@ -81,25 +88,14 @@ pub fn draw_coarse(
         }
         scene.retain(|index, _| !dropped[index]);
     }
-    if scene.paths().iter().any(|placed| placed.origin == Origin::Coarse) {
-        let mut fallback_only = scene.clone();
-        fallback_only.retain(|_, placed| placed.origin != Origin::Coarse);
-        if scene.total_error() > fallback_only.total_error() {
-            *scene = fallback_only;
-        }
+    if scene.counts().coarse == 0 || scene.total_error() > fallback.error {
+        *scene = fallback_only(scene, fallback);
     }
 }
 
-/// The `count` regions whose pixels `fallback` (drawn over the empty `scene`) gets most wrong.
+/// The `count` regions of `scene`'s image whose pixels `fallback` gets most wrong.
 fn worst_regions(scene: &Scene, fallback: &FallbackDrawing, count: usize) -> Vec<u32> {
-    let mut drawn = scene.clone();
-    drawn.push(Placed { shape: fallback.background.into(), region: None, origin: Origin::Background });
-    for (&region, shape) in fallback.order.iter().zip(&fallback.regions) {
-        if let Some(shape) = shape {
-            drawn.push(Placed { shape: shape.clone(), region: Some(region), origin: Origin::Fallback });
-        }
-    }
-    let errors = drawn.region_errors();
+    let errors = region_errors(&fallback.canvas, scene.target(), scene.segmentation());
     let mut ranked: Vec<u32> = (0..errors.len() as u32).collect();
     worst_first(&mut ranked, &errors);
     ranked.truncate(count);
@@ -119,7 +115,7 @@ fn propose(
     for chunk in crops.chunks(batch.max(1)) {
         let scenes = coarse.forward(CropBatch::new(chunk, device).pixels).to_scenes();
         for (crop, scene) in chunk.iter().zip(scenes) {
-            let visible = scene.into_iter().filter(|path| path.alpha > 0.5);
+            let visible = scene.into_iter().filter(Path::is_visible);
             proposals.push(
                 visible.map(|path| crop_to_image(Path { alpha: 1.0, ..path }, crop, width, height)).collect(),
             );

@@ -11,6 +11,8 @@ use rayon::prelude::*;
 use superpixel::Segmentation;
 use tiny_skia::Pixmap;
 
+use crate::scene::{Origin, Placed, Scene, Scope};
+
 /// How far (pixels) a region's outline is pushed outwards when it is fitted with one path
 /// ([`fitted_path`]), so the paths of neighbouring regions overlap instead of leaving seams of
 /// the background between them; the later region covers the overlap. Half a pixel measured
@@ -77,35 +79,81 @@ pub fn painter_order(segmentation: &Segmentation) -> Vec<u32> {
     order
 }
 
-/// The fallback drawing of an image's segmentation: traced once, then scored (choosing a
-/// segmentation) and drawn (the coarse stage starts from it).
+/// Every region's polygon ([`region_polygon`]), traced in parallel, in painter's order `order`.
+fn traced(segmentation: &Segmentation, order: &[u32]) -> Vec<Option<Shape>> {
+    let mut rank = vec![0; order.len()];
+    for (place, &r) in order.iter().enumerate() {
+        rank[r as usize] = place;
+    }
+    order.par_iter().map(|&r| region_polygon(segmentation, r, &rank).map(Shape::from)).collect()
+}
+
+/// The fallback drawing of an image's segmentation: traced, rendered and scored once (choosing
+/// a segmentation), then drawn (the coarse stage starts from it, or takes its rendering as it
+/// is when E_c draws nothing). A region's polygon is drawn only if it lowers the error of its
+/// own pixels over what is under them (the background and the regions before it): on a flat
+/// picture, whose every region has the background's colour, the drawing is the background alone.
 #[derive(Clone, Debug)]
 pub struct FallbackDrawing {
     /// The regions in painter's order ([`painter_order`]).
     pub order: Vec<u32>,
-    /// Each region's polygon, in `order`; `None` where a region has no pixels.
+    /// Each region's polygon, in `order`; `None` where a region has no pixels or its polygon
+    /// would lower nothing.
     pub regions: Vec<Option<Shape>>,
     /// The path under everything ([`background`] of the region paths).
     pub background: Path,
+    /// The exact rendering of [`FallbackDrawing::paths`] (premultiplied RGBA).
+    pub canvas: Pixmap,
+    /// Its squared error against the image (RGB over white, summed over pixels).
+    pub error: f64,
 }
 
 impl FallbackDrawing {
-    /// Traces every region of `segmentation` (in parallel) and fits the background of `image` under them.
+    /// Traces every region of `segmentation` (in parallel), fits the background of `image`
+    /// under them, renders the drawing and scores it.
     pub fn new(image: &Rgb32FImage, segmentation: &Segmentation) -> Self {
         let order = painter_order(segmentation);
-        let mut rank = vec![0; order.len()];
-        for (place, &r) in order.iter().enumerate() {
-            rank[r as usize] = place;
-        }
-        let regions: Vec<Option<Shape>> =
-            order.par_iter().map(|&r| region_polygon(segmentation, r, &rank).map(Shape::from)).collect();
+        let regions = traced(segmentation, &order);
         let background = background(image, &regions.iter().flatten().cloned().collect::<Vec<_>>());
-        Self { order, regions, background }
+        let mut scene = Scene::new(image.clone(), segmentation.clone());
+        scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background });
+        // Judged on its own pixels only: a polygon also covers its neighbours' (a region with
+        // holes covers them whole), which the regions painted after it cover again.
+        let mut own = vec![false; segmentation.regions.len()];
+        let regions = order
+            .iter()
+            .zip(regions)
+            .map(|(&region, shape)| {
+                let placed = Placed { shape: shape?, region: Some(region), origin: Origin::Fallback };
+                let shape = placed.shape.clone();
+                own[region as usize] = true;
+                let kept = scene.try_push(placed, Scope::Regions(&own)).map(|_| shape);
+                own[region as usize] = false;
+                kept
+            })
+            .collect();
+        let error = scene.total_error();
+        Self { order, regions, background, canvas: scene.into_canvas(), error }
     }
 
     /// The drawing alone: the background, then every region's polygon in painter's order.
     pub fn paths(&self) -> Vec<Shape> {
-        std::iter::once(self.background.into()).chain(self.regions.iter().flatten().cloned()).collect()
+        self.placed().into_iter().map(|placed| placed.shape).collect()
+    }
+
+    /// [`FallbackDrawing::paths`] with their regions and stages, as a scene holds them.
+    pub fn placed(&self) -> Vec<Placed> {
+        let background = Placed { shape: self.background.into(), region: None, origin: Origin::Background };
+        let regions = self.order.iter().zip(&self.regions).filter_map(|(&region, shape)| {
+            shape.clone().map(|shape| Placed { shape, region: Some(region), origin: Origin::Fallback })
+        });
+        std::iter::once(background).chain(regions).collect()
+    }
+
+    /// Its mean squared error per value (the error over pixels × 3 channels).
+    pub fn mse(&self) -> f64 {
+        let values = 3.0 * self.canvas.width() as f64 * self.canvas.height() as f64;
+        self.error / values
     }
 }
 
@@ -163,11 +211,29 @@ mod tests {
         for region in &mut segmentation.regions {
             region.mean_color = [0.0; 3];
         }
-        let drawing = FallbackDrawing::new(&image, &segmentation);
-        let regions: Vec<Shape> = drawing.regions.into_iter().flatten().collect();
+        let regions: Vec<Shape> =
+            traced(&segmentation, &painter_order(&segmentation)).into_iter().flatten().collect();
+        assert_eq!(regions.len(), segmentation.regions.len());
         let drawn = raster::render_exact(&regions, 96, 64, [1.0; 3]);
         let brightest = drawn.pixels().map(|p| p.0[0]).max().unwrap();
         assert!(brightest <= 4, "a seam lets the canvas show through: {brightest}/255");
+    }
+
+    #[test]
+    fn a_flat_picture_is_its_background_alone_and_the_canvas_is_its_rendering() {
+        let flat = Rgb32FImage::from_pixel(48, 32, Rgb([0.2, 0.6, 0.4]));
+        let segmentation = slic(&flat, &SlicOptions { n_segments: 12, ..Default::default() }).unwrap();
+        let drawing = FallbackDrawing::new(&flat, &segmentation);
+        assert!(drawing.regions.iter().all(Option::is_none), "a region drew nothing yet was kept");
+        assert_eq!(drawing.paths().len(), 1);
+        assert!(drawing.error < 1e-3, "{}", drawing.error);
+        let image = wavy_image();
+        let segmentation = slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap();
+        let drawing = FallbackDrawing::new(&image, &segmentation);
+        assert!(drawing.regions.iter().filter(|r| r.is_some()).count() > 30, "regions that draw are kept");
+        let rendered = raster::render_exact(&drawing.paths(), 96, 64, [1.0; 3]);
+        let scene = Scene::drawn(image, segmentation, drawing.placed(), drawing.canvas.clone());
+        assert_eq!(scene.canvas_rgb8(), rendered);
     }
 
     #[test]

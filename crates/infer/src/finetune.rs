@@ -5,8 +5,10 @@
 //! path's own box (bands of rows in parallel), not paths × pixels. Coordinates stay in the
 //! canvas and colours and opacity in [0, 1]; the best state seen is kept.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
+use common::psnr_of_mse;
 use raster::{COORDS, PARAMS, Path, Shape, Window};
 
 use crate::fallback::fitted_path;
@@ -64,17 +66,19 @@ pub struct Progress {
 
 /// Fine-tunes every path of `scene` against its image. Traced polygons (the fallback's regions)
 /// start as their outlines fitted with one path ([`fitted_path`]), which only approximates
-/// them: if the best state found is worse than the scene was, the scene keeps its old shapes.
-/// Returns the number of optimizer steps taken (0 when a polygon cannot be fitted).
+/// them: if the best state found is worse than the scene was, the scene keeps its old shapes,
+/// as it does when no step is taken. Returns the number of optimizer steps taken (0 when a
+/// polygon cannot be fitted).
 pub fn finetune(scene: &mut Scene, options: &FinetuneOptions) -> usize {
-    finetune_with_progress(scene, options, &mut |_| {})
+    finetune_with_progress(scene, options, &mut |_| ControlFlow::Continue(()))
 }
 
-/// [`finetune`], calling `on_step` after every step (for a progress bar).
+/// [`finetune`], calling `on_step` after every step (for a progress bar); when it breaks,
+/// fine-tuning stops there, keeping the best state seen so far.
 pub fn finetune_with_progress(
     scene: &mut Scene,
     options: &FinetuneOptions,
-    on_step: &mut dyn FnMut(&Progress),
+    on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> usize {
     let started = Instant::now();
     let image = scene.target();
@@ -96,11 +100,13 @@ pub fn finetune_with_progress(
         Budget::Seconds(_) => None,
     };
     let mut steps = 0;
+    let mut stopped = false;
     loop {
-        let done = match options.budget {
-            Budget::Steps(total) => steps >= total,
-            Budget::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
-        };
+        let done = stopped
+            || match options.budget {
+                Budget::Steps(total) => steps >= total,
+                Budget::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
+            };
         let paths: Vec<Path> = params.iter().map(Path::from_params).collect();
         if done {
             if window.l2(&paths) < best.0 {
@@ -114,25 +120,24 @@ pub fn finetune_with_progress(
         }
         adam.step((options.lr_points, options.lr_colors), &mut params, &gradients);
         steps += 1;
-        on_step(&Progress {
+        let progress = Progress {
             seconds: started.elapsed().as_secs_f64(),
             steps,
             total_steps,
-            psnr: -10.0 * best.0.max(1e-10).log10(),
-        });
+            psnr: psnr_of_mse(best.0),
+        };
+        stopped = on_step(&progress).is_break();
     }
-    let before = scene.total_error();
-    scene.set_shapes(&best.1.into_iter().map(Shape::from).collect::<Vec<_>>());
-    if scene.total_error() > before {
-        scene.set_shapes(&original);
+    if steps > 0 {
+        let before = scene.total_error();
+        scene.set_shapes(&best.1.into_iter().map(Shape::from).collect::<Vec<_>>());
+        if scene.total_error() > before {
+            scene.set_shapes(&original);
+        }
     }
     let values = 3.0 * f64::from(width) * f64::from(height);
-    on_step(&Progress {
-        seconds: started.elapsed().as_secs_f64(),
-        steps,
-        total_steps,
-        psnr: -10.0 * (scene.total_error() / values).max(1e-10).log10(),
-    });
+    let psnr = psnr_of_mse(scene.total_error() / values);
+    let _ = on_step(&Progress { seconds: started.elapsed().as_secs_f64(), steps, total_steps, psnr });
     steps
 }
 

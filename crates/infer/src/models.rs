@@ -82,7 +82,8 @@ pub enum ModelsError {
 /// a `models/` folder next to the executable or up to three levels above it (a cargo build
 /// inside the repository), or in the source tree this program was built from.
 pub fn bundled(name: &str) -> Result<PathBuf, ModelsError> {
-    if let Some(dir) = std::env::var_os(MODELS_ENV) {
+    // Set but empty (`SUPERSVG_MODELS=`) is unset, as shells treat it.
+    if let Some(dir) = std::env::var_os(MODELS_ENV).filter(|dir| !dir.is_empty()) {
         let dir = PathBuf::from(dir);
         let path = dir.join(name);
         return if path.is_file() { Ok(path) } else { Err(ModelsError::NotInEnv { dir, name: name.into() }) };

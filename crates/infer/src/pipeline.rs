@@ -1,55 +1,74 @@
-//! SuperSVG-B as stages over one [`Scene`]: segment (the best of a few segmentations) → coarse
-//! (background, fallbacks, E_c) → refine (E_r). Fine-tuning ([`crate::finetune`]) and export work on the scene it returns.
+//! The whole image → SVG job as one call, [`run`]: what `infer`, `eval`, `tune` and any other
+//! front end use, so that every figure they print is what a user of `infer` gets.
+//!
+//! SuperSVG-B is stages over one [`Scene`]: segment (the best of a few segmentations, or the
+//! automatic budget's cut) → coarse (background, fallbacks, E_c) → refine (E_r); SuperSVG-F
+//! fine-tunes the scene it is handed ([`Outcome::finetuned`]); export writes the SVG from the
+//! scene and measures its canvas, which is never rendered again.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use burn::tensor::Device;
-use image::Rgb32FImage;
+use common::Loaded;
 use model::OperatingPoint;
-use raster::render_exact;
-use superpixel::{SegmentOptions, Segmentation, SlicError, segment};
+use raster::{SvgError, SvgOptions, to_svg_with};
+use serde::Serialize;
+use superpixel::SlicError;
 
 use crate::coarse::{CoarseBudget, draw_coarse};
-use crate::fallback::FallbackDrawing;
-use crate::metrics::mse;
+use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
 use crate::refine::draw_refinement;
-use crate::scene::Scene;
+use crate::scene::{Scene, StageCounts};
+use crate::segmentation::{AutoBudget, auto_budget, choose_segmentation, max_regions};
 
-/// The most paths [`vectorize`] draws: at 20 000, segmenting, fitting and the exact canvas take
-/// about 10 s at 512 px; more paths than that is more regions than such an image has of
-/// [`MIN_REGION_PIXELS`].
+/// The most paths [`run`] draws: at 20 000, segmenting, fitting and the exact canvas take about
+/// 10 s at 512 px; more paths than that is more regions than such an image has of
+/// [`crate::segmentation::PIXELS_PER_REGION`].
 pub const MAX_PATHS: usize = 20_000;
 
-/// The fewest pixels a region is cut with (4 × 4): SLIC cannot place more centres than that
-/// meaningfully, and one path per pixel would only copy the raster.
-pub const MIN_REGION_PIXELS: usize = 16;
-
-/// The most regions an image of `width × height` pixels is split into.
-pub fn max_regions(width: u32, height: u32) -> usize {
-    (width as usize * height as usize / MIN_REGION_PIXELS).max(1)
+/// How many paths a job may draw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PathBudget {
+    /// At most this many (2 to [`MAX_PATHS`]); fewer only when no further path lowers the error.
+    Count(usize),
+    /// As many as the image needs, by [`auto_budget`]'s rule.
+    Auto(AutoBudget),
 }
 
-/// Settings of one vectorization.
+/// Everything that decides how an image becomes an SVG.
 #[derive(Clone, Debug)]
-pub struct Options {
-    /// The most paths of the result (at least 2: the background and one region). Fewer are
-    /// drawn only when no further path lowers the error.
-    pub paths: usize,
-    /// Number of superpixels; by default the operating point's for the budget. Clamped to
-    /// `paths − 1` and to [`max_regions`].
+pub struct Job {
+    /// How many paths.
+    pub paths: PathBudget,
+    /// Number of superpixels, below the path count (a fixed budget only); by default the
+    /// operating point's for the budget. Lowered to one per
+    /// [`crate::segmentation::PIXELS_PER_REGION`] pixels, with a [`Warning`].
     pub regions: Option<usize>,
     /// How the budget is split; by default the one stored with the models.
     pub operating_point: Option<OperatingPoint>,
+    /// SuperSVG-F: fine-tune every path against the image after B.
+    pub finetune: Option<FinetuneOptions>,
+    /// How the SVG is written (decimals).
+    pub svg: SvgOptions,
     /// SLIC compactness (the method's 30).
     pub compactness: f32,
     /// Crops per network call.
     pub batch: usize,
 }
 
-impl Default for Options {
+impl Default for Job {
     fn default() -> Self {
-        Self { paths: 500, regions: None, operating_point: None, compactness: 30.0, batch: 32 }
+        Self {
+            paths: PathBudget::Count(500),
+            regions: None,
+            operating_point: None,
+            finetune: None,
+            svg: SvgOptions::default(),
+            compactness: 30.0,
+            batch: 32,
+        }
     }
 }
 
@@ -61,270 +80,284 @@ pub enum VectorizeError {
         "a budget of {0} paths is out of range: at least 2 (the background and one region), at most {MAX_PATHS}"
     )]
     Budget(usize),
+    /// More regions than the budget has paths for (each takes one, and so does the background).
+    #[error(
+        "{regions} regions do not fit a budget of {paths} paths (each region takes a path, and so does the background)"
+    )]
+    Regions {
+        /// Regions asked for.
+        regions: usize,
+        /// The budget.
+        paths: usize,
+    },
+    /// A region count was given with an automatic budget, which chooses its own.
+    #[error("a number of regions needs a number of paths, not an automatic budget")]
+    RegionsWithAuto,
     /// The image could not be segmented.
     #[error(transparent)]
     Segmentation(#[from] SlicError),
+    /// The drawing could not be written as SVG.
+    #[error(transparent)]
+    Svg(#[from] SvgError),
 }
 
-/// The outcome of [`vectorize`].
-pub struct Vectorization {
+/// Something a job did differently from what it was asked, said to the user.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Warning {
+    /// Fewer paths than the budget: the rest lowered nothing (a flat picture needs one).
+    #[error("{drawn} of {budget} paths drawn: no other path the stages tried lowered the error")]
+    FewerPaths {
+        /// Paths drawn.
+        drawn: usize,
+        /// The budget.
+        budget: usize,
+    },
+    /// More regions were asked for than the working image has room for.
+    #[error(
+        "{asked} regions lowered to {used} (one region per {per} pixels of the {width}×{height} working image)",
+        per = crate::segmentation::PIXELS_PER_REGION
+    )]
+    RegionsLowered {
+        /// Asked for.
+        asked: usize,
+        /// Drawn.
+        used: usize,
+        /// Working width.
+        width: u32,
+        /// Working height.
+        height: u32,
+    },
+}
+
+/// Seconds per stage of one job.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Seconds {
+    /// Reading the file and scaling it to the working size.
+    pub decode: f64,
+    /// Segmenting (and, for an automatic budget, choosing it).
+    pub superpixels: f64,
+    /// Background, fallbacks and E_c.
+    pub coarse: f64,
+    /// E_r.
+    pub refine: f64,
+    /// SuperSVG-F, when asked for.
+    pub finetune: Option<f64>,
+    /// Writing the SVG and measuring the drawing.
+    pub export: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// What a job made and how well it draws: the schema of `infer --metrics`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Report {
+    /// Width of the input, which the SVG keeps.
+    pub width: u32,
+    /// Height of the input.
+    pub height: u32,
+    /// Width of the working image.
+    pub working_width: u32,
+    /// Height of the working image.
+    pub working_height: u32,
+    /// The path budget drawn with (what an automatic budget chose).
+    pub budget: usize,
+    /// Whether the budget was chosen automatically.
+    pub auto_budget: bool,
+    /// Paths in the SVG.
+    pub paths: usize,
+    /// Paths per stage.
+    pub paths_by_stage: StageCounts,
+    /// Superpixels.
+    pub regions: usize,
+    /// How the budget was split.
+    pub operating_point: OperatingPoint,
+    /// Mean squared error of the drawing at the working size (RGB in [0, 1]).
+    pub mse: f64,
+    /// Its PSNR (dB).
+    pub psnr: f64,
+    /// Its SSIM ([`common::ssim`]).
+    pub ssim: f64,
+    /// Fine-tuning steps taken (SuperSVG-F only).
+    pub finetune_steps: Option<usize>,
+    /// Size of the SVG.
+    pub svg_bytes: usize,
+    /// Seconds per stage.
+    pub seconds: Seconds,
+}
+
+/// A job's result: the drawing, its SVG, and the report.
+#[derive(Clone)]
+pub struct Outcome {
     /// The drawing: paths with their regions and stages, and its exact rendering.
     pub scene: Scene,
-    /// The operating point used.
-    pub operating_point: OperatingPoint,
-    /// Seconds per stage.
-    pub timings: Vec<(&'static str, f64)>,
+    /// The SVG document, at the input's size, one group per region.
+    pub svg: String,
+    /// What was made and how well it draws.
+    pub report: Report,
+    /// What was done differently from what the job asked.
+    pub warnings: Vec<Warning>,
 }
 
-/// The SLIC compactness of the plain-SLIC candidates of [`choose_segmentation`], as fractions of
-/// the method's: less compact regions follow colour edges instead of staying round, which flat
-/// art rewards. On the 31 emoji of data/eval at the stored operating point, one extra candidate
-/// at 1/2 or 1/3 of 30 gains about 1 dB at 500 paths, these three 1.4 / 1.0 dB at 500 / 2000
-/// (docs/operating-point.md, measured when regions were fitted with one path); 1/6 alone gained
-/// 0.3. Each candidate costs one SLIC, one tracing and one rendering.
-const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
-
-/// The candidate of [`choose_segmentation`] whose regions take any shape: SLIC for this many
-/// times the regions at a third of the compactness, merged by colour with no floor on
-/// compactness, so that regions follow the image's colour edges as far as the count allows.
-/// Only traced outlines draw such regions well. With it, the fallback alone draws data/eval's
-/// photos at 25.45 dB / LPIPS 0.281 and the first 12 emoji at 36.64 / 0.023 at 500 paths
-/// (docs/eval), against 22.95 / 0.427 and 27.47 / 0.072 with one fitted path per region of
-/// the earlier candidates. It is also the costliest candidate (most of `infer`'s time).
-const FREE_OVERSEGMENT: f32 = 64.0;
-
-/// How [`choose_segmentation`]'s candidates are made: merged freely ([`FREE_OVERSEGMENT`]),
-/// merged by colour as `point` makes them (if it oversegments), then plain SLIC at each of
-/// [`PLAIN_COMPACTNESS`] × `compactness`.
-fn candidates(point: &OperatingPoint, compactness: f32) -> impl Iterator<Item = SegmentOptions> {
-    let free = SegmentOptions {
-        compactness: compactness / 3.0,
-        oversegment: FREE_OVERSEGMENT,
-        min_compactness: 0.0,
-    };
-    let plain = OperatingPoint { oversegment: 1.0, ..*point };
-    let merged = (point.oversegment > 1.0).then(|| point.segment_options(compactness));
-    std::iter::once(free)
-        .chain(merged)
-        .chain(PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction)))
+/// Draws `image` as `job` says with `models` on `device`: SuperSVG-B, then SuperSVG-F if the job
+/// asks for it.
+pub fn run(models: &Models, image: &Loaded, job: &Job, device: &Device) -> Result<Outcome, VectorizeError> {
+    run_with_progress(models, image, job, device, &mut |_| ControlFlow::Continue(()))
 }
 
-/// `image` split into `regions` superpixels, of the candidates ([`candidates`]) the one whose
-/// fallback drawing draws it best (least squared error).
-/// Returns the chosen segmentation with its fallback drawing (traced once: scoring a candidate
-/// costs its tracing and one rendering).
-pub fn choose_segmentation(
-    image: &Rgb32FImage,
-    regions: usize,
-    point: &OperatingPoint,
-    compactness: f32,
-) -> Result<(Segmentation, FallbackDrawing), SlicError> {
-    let mut best: Option<(f64, Segmentation, FallbackDrawing)> = None;
-    for options in candidates(point, compactness) {
-        let segmentation = segment(image, regions, &options)?;
-        let drawing = FallbackDrawing::new(image, &segmentation);
-        let error = drawing_error(&drawing, image);
-        if best.as_ref().is_none_or(|(least, ..)| error < *least) {
-            best = Some((error, segmentation, drawing));
+/// [`run`], calling `on_step` after every fine-tuning step (a progress bar; breaking stops the
+/// fine-tuning with the best drawing so far).
+pub fn run_with_progress(
+    models: &Models,
+    image: &Loaded,
+    job: &Job,
+    device: &Device,
+    on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+) -> Result<Outcome, VectorizeError> {
+    let started = Instant::now();
+    let target = &image.image;
+    let (width, height) = target.dimensions();
+    let point = operating_point(models, job.operating_point);
+    let most = max_regions(width, height);
+    let mut warnings = Vec::new();
+    let (paths, regions, free) = match job.paths {
+        PathBudget::Count(paths) => {
+            if !(2..=MAX_PATHS).contains(&paths) {
+                return Err(VectorizeError::Budget(paths));
+            }
+            if let Some(regions) = job.regions.filter(|&r| r == 0 || r >= paths) {
+                return Err(VectorizeError::Regions { regions, paths });
+            }
+            let asked = job.regions.unwrap_or_else(|| point.regions(paths).clamp(1, paths - 1));
+            if asked > most {
+                warnings.push(Warning::RegionsLowered { asked, used: most, width, height });
+            }
+            (paths, asked.min(most), None)
         }
-    }
-    let (_, segmentation, drawing) = best.expect("at least one candidate");
-    Ok((segmentation, drawing))
-}
-
-/// Mean squared error of the exact rendering of `drawing` (over white) against `image`.
-fn drawing_error(drawing: &FallbackDrawing, image: &Rgb32FImage) -> f64 {
-    let (width, height) = image.dimensions();
-    let drawn = render_exact(&drawing.paths(), width, height, [1.0; 3]);
-    mse(&image::DynamicImage::ImageRgb8(drawn).to_rgb32f(), image)
-}
-
-/// How [`auto_budget`] picks a path budget for an image: the fewest paths that are close enough
-/// to the image, or past which more paths stop paying.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AutoBudget {
-    /// Close enough: the PSNR (dB) at which no more paths are added.
-    pub target_psnr: f64,
-    /// Paying: the gain (dB) per doubling of the paths that more paths must bring, on average
-    /// over every larger budget measured.
-    pub min_gain: f64,
-    /// The most paths.
-    pub max_paths: usize,
-}
-
-impl Default for AutoBudget {
-    /// 30 dB is where flat art looks drawn, not approximated. 0.25 dB per doubling keeps a
-    /// textured photo climbing (the baboon of data/eval gains about 0.45 dB per doubling from 8
-    /// to 500 paths; at 0.5 it stopped at 8 paths and 16.5 dB) while a flat picture, whose
-    /// fallback drawing gains nothing from more regions, stays at 8. 2000 is the largest budget
-    /// eval measures.
-    fn default() -> Self {
-        Self { target_psnr: 30.0, min_gain: 0.25, max_paths: 2000 }
-    }
-}
-
-/// The smallest budget the auto ladder starts from: the background and 7 regions.
-const AUTO_FIRST: usize = 8;
-
-/// A path budget for `image` by `auto`'s rule, judged on the fallback drawing (what every
-/// region gets first), segmented as [`vectorize`] segments for `point`: budgets 8, 16, 32, …
-/// are measured until one reaches `auto.target_psnr` or `auto.max_paths` is reached, and the
-/// smallest from which no larger measured budget gains `auto.min_gain` per doubling on average
-/// is chosen. An early plateau (a few regions cannot yet follow fine detail) does not stop the
-/// climb; a flat picture whose seams keep it just under the target stays at 8. Costs about
-/// twice the segmenting and fitting of the largest budget measured.
-pub fn auto_budget(
-    image: &Rgb32FImage,
-    point: &OperatingPoint,
-    compactness: f32,
-    auto: &AutoBudget,
-) -> Result<usize, VectorizeError> {
-    let max_paths = auto.max_paths.clamp(2, MAX_PATHS);
-    let most = max_regions(image.width(), image.height());
-    let mut ladder: Vec<(usize, f64)> = Vec::new();
-    let mut paths = AUTO_FIRST.min(max_paths);
-    loop {
-        let regions = point.regions(paths).clamp(1, paths - 1).min(most);
-        let (_, drawing) = choose_segmentation(image, regions, point, compactness)?;
-        let quality = -10.0 * drawing_error(&drawing, image).max(1e-10).log10();
-        ladder.push((paths, quality));
-        if quality >= auto.target_psnr || paths == max_paths || regions == most {
-            break;
+        PathBudget::Auto(auto) => {
+            if job.regions.is_some() {
+                return Err(VectorizeError::RegionsWithAuto);
+            }
+            let choice = auto_budget(target, &point, job.compactness, &auto)?;
+            let regions = choice.free.regions.len();
+            (choice.paths, regions, Some(choice.free))
         }
-        paths = (paths * 2).min(max_paths);
-    }
-    let pays = |(fewer, low): (usize, f64), (more, high): (usize, f64)| {
-        high - low >= auto.min_gain * (more as f64 / fewer as f64).log2()
     };
-    let knee = (0..ladder.len()).find(|&i| ladder[i + 1..].iter().all(|&later| !pays(ladder[i], later)));
-    Ok(ladder[knee.unwrap_or(ladder.len() - 1)].0)
+    let segmented = choose_segmentation(target, regions, &point, job.compactness, free)?;
+    let mut scene = Scene::new(target.clone(), segmented.segmentation);
+    let superpixels = started.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let budget =
+        CoarseBudget { paths: point.coarse_paths(paths), total: paths - point.reserved_for_refine(paths) };
+    draw_coarse(&models.coarse, &models.config, &mut scene, segmented.fallback, budget, job.batch, device);
+    let coarse = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    if let Some(refine) = &models.refine {
+        draw_refinement(refine, &models.config, &mut scene, paths, job.batch, device);
+    }
+    let refine = clock.elapsed().as_secs_f64();
+
+    if matches!(job.paths, PathBudget::Count(_)) && scene.len() < paths {
+        warnings.push(Warning::FewerPaths { drawn: scene.len(), budget: paths });
+    }
+    let seconds = Seconds { decode: image.seconds, superpixels, coarse, refine, ..Seconds::default() };
+    let drawn =
+        Drawn { auto_budget: matches!(job.paths, PathBudget::Auto(_)), budget: paths, point, seconds };
+    let outcome = export(scene, image, job, drawn, warnings)?;
+    match &job.finetune {
+        Some(options) => outcome.finetuned(image, job, options, on_step),
+        None => Ok(outcome),
+    }
 }
 
-/// The operating point [`vectorize`] uses: the one in `options`, else the models' own, with no
-/// budget kept for E_r when there is none.
-pub fn operating_point(models: &Models, options: &Options) -> OperatingPoint {
-    let mut point = options.operating_point.unwrap_or(models.operating_point);
+/// The operating point a job uses: the one given, else the models' own, with no budget kept for
+/// E_r when there is none.
+pub fn operating_point(models: &Models, given: Option<OperatingPoint>) -> OperatingPoint {
+    let mut point = given.unwrap_or(models.operating_point);
     if models.refine.is_none() {
         point.refine_share = 0.0;
     }
     point
 }
 
-/// Vectorizes `image` (working resolution) with `models` on `device`.
-pub fn vectorize(
-    models: &Models,
-    image: &Rgb32FImage,
-    options: &Options,
-    device: &Device,
-) -> Result<Vectorization, VectorizeError> {
-    if !(2..=MAX_PATHS).contains(&options.paths) {
-        return Err(VectorizeError::Budget(options.paths));
-    }
-    let mut timings = Vec::new();
-    let mut clock = Instant::now();
-    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
-        timings.push((name, clock.elapsed().as_secs_f64()));
-        clock = Instant::now();
-    };
-
-    let point = operating_point(models, options);
-    let most = max_regions(image.width(), image.height());
-    let regions =
-        options.regions.unwrap_or_else(|| point.regions(options.paths)).clamp(1, options.paths - 1).min(most);
-    let (segmentation, fallback) = choose_segmentation(image, regions, &point, options.compactness)?;
-    let mut scene = Scene::new(image.clone(), segmentation);
-    lap("superpixels", &mut timings);
-
-    let budget = CoarseBudget {
-        paths: point.coarse_paths(options.paths),
-        total: options.paths - point.reserved_for_refine(options.paths),
-    };
-    draw_coarse(&models.coarse, &models.config, &mut scene, fallback, budget, options.batch, device);
-    lap("coarse", &mut timings);
-
-    if let Some(refine) = &models.refine {
-        draw_refinement(refine, &models.config, &mut scene, options.paths, options.batch, device);
-    }
-    lap("refine", &mut timings);
-    Ok(Vectorization { scene, operating_point: point, timings })
+/// What the report says of how a scene was drawn, besides the scene itself.
+struct Drawn {
+    auto_budget: bool,
+    budget: usize,
+    point: OperatingPoint,
+    seconds: Seconds,
 }
 
-#[cfg(test)]
-mod tests {
-    use image::Rgb;
+/// The outcome of `scene`: its SVG at the input's size (one group per region, so editors select
+/// a region's paths together) and its measures on the scene's own canvas.
+fn export(
+    scene: Scene,
+    image: &Loaded,
+    job: &Job,
+    drawn: Drawn,
+    warnings: Vec<Warning>,
+) -> Result<Outcome, VectorizeError> {
+    let clock = Instant::now();
+    let (width, height) = image.original;
+    let layers: Vec<Option<u32>> = scene.paths().iter().map(|placed| placed.region).collect();
+    let svg = to_svg_with(&scene.scene(), &layers, width, height, &job.svg)?;
+    let canvas = scene.canvas_image();
+    let mse = common::mse(&canvas, &image.image);
+    let ssim = common::ssim(&canvas, &image.image);
+    let export = clock.elapsed().as_secs_f64();
+    let Drawn { auto_budget, budget, point, mut seconds } = drawn;
+    seconds.export = export;
+    seconds.total = seconds.decode
+        + seconds.superpixels
+        + seconds.coarse
+        + seconds.refine
+        + seconds.finetune.unwrap_or(0.0)
+        + export;
+    let report = Report {
+        width,
+        height,
+        working_width: image.image.width(),
+        working_height: image.image.height(),
+        budget,
+        auto_budget,
+        paths: scene.len(),
+        paths_by_stage: scene.counts(),
+        regions: scene.segmentation().regions.len(),
+        operating_point: point,
+        mse,
+        psnr: common::psnr_of_mse(mse),
+        ssim,
+        finetune_steps: None,
+        svg_bytes: svg.len(),
+        seconds,
+    };
+    Ok(Outcome { scene, svg, report, warnings })
+}
 
-    use super::*;
-
-    /// `cells × cells` squares of `side` pixels in colours drawn from `seed`.
-    fn blocks(cells: u32, side: u32, seed: u32) -> Rgb32FImage {
-        let colour =
-            |i: u32, c: u32| ((i.wrapping_mul(2_654_435_761) ^ (seed + c * 97)) % 251) as f32 / 250.0;
-        Rgb32FImage::from_fn(cells * side, cells * side, |x, y| {
-            let i = (y / side) * cells + x / side;
-            Rgb([colour(i, 0), colour(i, 1), colour(i, 2)])
-        })
-    }
-
-    #[test]
-    fn auto_budget_stops_early_on_flat_art_and_climbs_on_detail() {
-        let point = OperatingPoint::default();
-        let auto = AutoBudget::default();
-        let two_colours = blocks(2, 48, 1);
-        let few = auto_budget(&two_colours, &point, 30.0, &auto).unwrap();
-        assert_eq!(few, AUTO_FIRST, "four flat squares need no more than the first rung");
-        let detailed = blocks(16, 8, 2);
-        let many = auto_budget(&detailed, &point, 30.0, &auto).unwrap();
-        assert!(many >= 128, "256 flat squares got only {many} paths");
-        assert!(many <= auto.max_paths);
-    }
-
-    /// Flat art with edges that round regions straddle: diagonal bands and a disc.
-    fn bands_and_disc() -> Rgb32FImage {
-        Rgb32FImage::from_fn(96, 96, |x, y| {
-            let (dx, dy) = (x as f32 - 60.0, y as f32 - 40.0);
-            if dx * dx + dy * dy < 20.0 * 20.0 {
-                Rgb([0.9, 0.2, 0.1])
-            } else if (x + 2 * y) / 11 % 2 == 0 {
-                Rgb([0.1, 0.3, 0.8])
-            } else {
-                Rgb([1.0, 0.9, 0.6])
-            }
-        })
-    }
-
-    #[test]
-    fn the_chosen_segmentation_draws_no_worse_than_any_candidate() {
-        let image = bands_and_disc();
-        let point = OperatingPoint { oversegment: 3.0, min_compactness: 0.3, ..OperatingPoint::default() };
-        let (segmentation, drawing) = choose_segmentation(&image, 24, &point, 30.0).unwrap();
-        let chosen = drawing_error(&drawing, &image);
-        assert_eq!(drawing.regions.len(), segmentation.regions.len());
-        let candidates: Vec<SegmentOptions> = candidates(&point, 30.0).collect();
-        assert_eq!(
-            candidates.len(),
-            2 + PLAIN_COMPACTNESS.len(),
-            "the free and the merged candidates, then the plain ones"
-        );
-        let errors: Vec<f64> = candidates
-            .iter()
-            .map(|options| {
-                let candidate = segment(&image, 24, options).unwrap();
-                drawing_error(&FallbackDrawing::new(&image, &candidate), &image)
-            })
-            .collect();
-        for (options, error) in candidates.iter().zip(&errors) {
-            assert!(chosen <= *error, "chose error {chosen}, but {options:?} draws {error}");
-        }
-        assert!(
-            chosen < errors[1],
-            "on flat art a less compact candidate should beat plain SLIC at 30: {errors:?}"
-        );
-    }
-
-    #[test]
-    fn auto_budget_keeps_to_its_ceiling() {
-        let greedy = AutoBudget { target_psnr: f64::INFINITY, min_gain: f64::NEG_INFINITY, max_paths: 40 };
-        let paths = auto_budget(&blocks(16, 8, 3), &OperatingPoint::default(), 30.0, &greedy).unwrap();
-        assert_eq!(paths, 40);
+impl Outcome {
+    /// SuperSVG-F from this outcome: every path fine-tuned against `image` (the image the
+    /// outcome was drawn from) as `options` say, then exported again. `on_step` is called after
+    /// every step; breaking stops with the best drawing so far.
+    pub fn finetuned(
+        self,
+        image: &Loaded,
+        job: &Job,
+        options: &FinetuneOptions,
+        on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+    ) -> Result<Outcome, VectorizeError> {
+        let Outcome { mut scene, report, warnings, .. } = self;
+        let clock = Instant::now();
+        let steps = finetune_with_progress(&mut scene, options, on_step);
+        let seconds = Seconds { finetune: Some(clock.elapsed().as_secs_f64()), ..report.seconds };
+        let drawn = Drawn {
+            auto_budget: report.auto_budget,
+            budget: report.budget,
+            point: report.operating_point,
+            seconds,
+        };
+        let mut outcome = export(scene, image, job, drawn, warnings)?;
+        outcome.report.finetune_steps = Some(steps);
+        Ok(outcome)
     }
 }

@@ -54,14 +54,8 @@ pub fn draw_refinement(
                 }
                 let path = crop_to_image(path, crop, width, height);
                 let path = scene.fit_colour(&path, Scope::All).unwrap_or(path);
-                if scene
-                    .try_push(
-                        Placed { shape: path.into(), region: Some(region), origin: Origin::Refine },
-                        Scope::All,
-                        0.0,
-                    )
-                    .is_some()
-                {
+                let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Refine };
+                if scene.try_push(placed, Scope::All).is_some() {
                     kept += 1;
                 }
             }

@@ -6,10 +6,12 @@
 //! path did not help. The canvas is touched only inside the pixel box of the path being painted,
 //! so it always equals a full exact rendering of the paths without ever re-rendering it.
 
-use image::{Rgb, Rgb32FImage};
+use common::PixelBox;
+use image::{Rgb, Rgb32FImage, RgbImage};
 use model::ModelConfig;
 use raster::{Filled, Path, Shape, coverage_exact_window, paint_exact};
-use superpixel::{BoundingBox, RegionCrop, Segmentation};
+use serde::Serialize;
+use superpixel::{RegionCrop, Segmentation};
 use tiny_skia::{IntRect, Pixmap};
 
 /// Which stage drew a path.
@@ -29,7 +31,7 @@ impl Origin {
     /// Every stage, in pipeline order.
     pub const ALL: [Origin; 4] = [Origin::Background, Origin::Fallback, Origin::Coarse, Origin::Refine];
 
-    /// Lower-case name for reports.
+    /// Lower-case name for reports (the field names of [`StageCounts`]).
     pub fn name(self) -> &'static str {
         match self {
             Origin::Background => "background",
@@ -37,6 +39,36 @@ impl Origin {
             Origin::Coarse => "coarse",
             Origin::Refine => "refine",
         }
+    }
+}
+
+/// How many paths each stage drew.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct StageCounts {
+    /// The path under everything (one, once drawn).
+    pub background: usize,
+    /// Regions' outlines in their mean colour.
+    pub fallback: usize,
+    /// E_c's paths.
+    pub coarse: usize,
+    /// E_r's paths.
+    pub refine: usize,
+}
+
+impl StageCounts {
+    /// The count of paths from `origin`.
+    pub fn of(&self, origin: Origin) -> usize {
+        match origin {
+            Origin::Background => self.background,
+            Origin::Fallback => self.fallback,
+            Origin::Coarse => self.coarse,
+            Origin::Refine => self.refine,
+        }
+    }
+
+    /// Every path.
+    pub fn total(&self) -> usize {
+        self.background + self.fallback + self.coarse + self.refine
     }
 }
 
@@ -75,13 +107,25 @@ impl Scene {
     /// # Panics
     /// If the segmentation was not computed on an image of `target`'s size.
     pub fn new(target: Rgb32FImage, segmentation: Segmentation) -> Self {
-        assert_eq!(
-            target.dimensions(),
-            (segmentation.width, segmentation.height),
-            "target and segmentation sizes"
-        );
         let canvas = Pixmap::new(target.width(), target.height()).expect("a non-empty image");
-        Self { target, segmentation, paths: Vec::new(), canvas }
+        Self::drawn(target, segmentation, Vec::new(), canvas)
+    }
+
+    /// The drawing of `target` made of `paths`, whose exact rendering `canvas` already is (made
+    /// elsewhere, e.g. when the drawing was scored): nothing is painted again.
+    ///
+    /// # Panics
+    /// If the segmentation or the canvas is not of `target`'s size.
+    pub fn drawn(
+        target: Rgb32FImage,
+        segmentation: Segmentation,
+        paths: Vec<Placed>,
+        canvas: Pixmap,
+    ) -> Self {
+        let size = target.dimensions();
+        assert_eq!(size, (segmentation.width, segmentation.height), "target and segmentation sizes");
+        assert_eq!(size, (canvas.width(), canvas.height()), "target and canvas sizes");
+        Self { target, segmentation, paths, canvas }
     }
 
     /// The image being drawn (working resolution).
@@ -120,8 +164,17 @@ impl Scene {
     }
 
     /// How many paths each stage drew.
-    pub fn counts(&self) -> Vec<(Origin, usize)> {
-        Origin::ALL.iter().map(|&o| (o, self.paths.iter().filter(|p| p.origin == o).count())).collect()
+    pub fn counts(&self) -> StageCounts {
+        let mut counts = StageCounts::default();
+        for placed in &self.paths {
+            *match placed.origin {
+                Origin::Background => &mut counts.background,
+                Origin::Fallback => &mut counts.fallback,
+                Origin::Coarse => &mut counts.coarse,
+                Origin::Refine => &mut counts.refine,
+            } += 1;
+        }
+        counts
     }
 
     /// Paints `placed` over everything drawn so far and keeps it; false (nothing kept) if the
@@ -139,12 +192,14 @@ impl Scene {
     }
 
     /// Paints `placed` over everything drawn so far and keeps it only if the squared error
-    /// over the `scope` pixels of its box drops by more than `min_gain`; otherwise the canvas
-    /// is restored. Returns how much it dropped when the path was kept, `None` otherwise.
-    pub fn try_push(&mut self, placed: Placed, scope: Scope<'_>, min_gain: f64) -> Option<f64> {
+    /// over the `scope` pixels of its box drops by more than rounding to 8 bits could make it
+    /// drop ([`ROUNDING_GAIN`] a pixel judged); otherwise the canvas is restored. Returns how
+    /// much it dropped when the path was kept, `None` otherwise.
+    pub fn try_push(&mut self, placed: Placed, scope: Scope<'_>) -> Option<f64> {
         let bbox = self.pixel_box(&placed.shape)?;
         let saved = self.save(bbox);
-        let before = self.error(bbox, scope);
+        let (before, pixels) = self.error_and_pixels(bbox, scope);
+        let min_gain = pixels as f64 * ROUNDING_GAIN;
         let size = self.size();
         if !paint_exact(&mut self.canvas, &placed.shape, size, (0, 0)) {
             return None;
@@ -167,12 +222,13 @@ impl Scene {
     pub fn fit_colour(&self, path: &Path, scope: Scope<'_>) -> Option<Path> {
         let bbox = self.pixel_box(path)?;
         let size = self.size();
-        let coverage = coverage_exact_window(path, size, (bbox.x0, bbox.y0), (bbox.width(), bbox.height()))?;
+        let coverage =
+            coverage_exact_window(path, size, (bbox.x0(), bbox.y0()), (bbox.width(), bbox.height()))?;
         let alpha = path.alpha.clamp(0.0, 1.0) as f64;
         let (width, data) = (self.target.width(), self.canvas.data());
         let (mut numerator, mut denominator) = ([0.0f64; 3], 0.0f64);
-        for (row, y) in (bbox.y0..bbox.y1).enumerate() {
-            for (column, x) in (bbox.x0..bbox.x1).enumerate() {
+        for (row, y) in bbox.rows().enumerate() {
+            for (column, x) in bbox.columns().enumerate() {
                 let index = (y * width + x) as usize;
                 if !self.in_scope(index, scope) {
                     continue;
@@ -196,29 +252,31 @@ impl Scene {
 
     /// Sum of squared differences (RGB in [0, 1]) between the drawing, seen over white, and the
     /// image over the `scope` pixels of `bbox`.
-    pub fn error(&self, bbox: BoundingBox, scope: Scope<'_>) -> f64 {
+    pub fn error(&self, bbox: PixelBox, scope: Scope<'_>) -> f64 {
+        self.error_and_pixels(bbox, scope).0
+    }
+
+    /// [`Scene::error`] and how many pixels it was summed over.
+    fn error_and_pixels(&self, bbox: PixelBox, scope: Scope<'_>) -> (f64, u64) {
         let width = self.target.width();
-        let mut sum = 0.0f64;
-        for y in bbox.y0..bbox.y1 {
+        let (mut sum, mut pixels) = (0.0f64, 0u64);
+        for y in bbox.rows() {
             let row = (y * width) as usize;
-            for x in bbox.x0..bbox.x1 {
+            for x in bbox.columns() {
                 let index = row + x as usize;
                 if !self.in_scope(index, scope) {
                     continue;
                 }
                 sum += pixel_error(self.canvas.data(), index, self.target.get_pixel(x, y));
+                pixels += 1;
             }
         }
-        sum
+        (sum, pixels)
     }
 
     /// Sum of squared differences per region over the whole image.
     pub fn region_errors(&self) -> Vec<f64> {
-        let mut errors = vec![0.0; self.segmentation.regions.len()];
-        for (index, (pixel, &label)) in self.target.pixels().zip(&self.segmentation.labels).enumerate() {
-            errors[label as usize] += pixel_error(self.canvas.data(), index, pixel);
-        }
-        errors
+        region_errors(&self.canvas, &self.target, &self.segmentation)
     }
 
     /// The drawing seen over white, RGB in [0, 1].
@@ -231,9 +289,24 @@ impl Scene {
         })
     }
 
+    /// The drawing seen over white, 8 bits per channel: the picture previews show.
+    pub fn canvas_rgb8(&self) -> RgbImage {
+        let (width, height) = self.size();
+        let data = self.canvas.data();
+        RgbImage::from_fn(width, height, |x, y| {
+            let i = 4 * (y * width + x) as usize;
+            Rgb(std::array::from_fn(|c| data[i + c].saturating_add(255 - data[i + 3])))
+        })
+    }
+
     /// The canvas: premultiplied RGBA, transparent where no path covers a pixel.
     pub fn canvas(&self) -> &Pixmap {
         &self.canvas
+    }
+
+    /// The canvas alone, the scene given up (a drawing that was only made to be scored).
+    pub fn into_canvas(self) -> Pixmap {
+        self.canvas
     }
 
     /// Replaces every shape (same count, same regions and stages) by `shapes`, e.g. after
@@ -259,25 +332,45 @@ impl Scene {
     }
 
     /// Keeps only the paths `keep` accepts (given each path's index and the path), in order,
-    /// and renders the canvas again.
+    /// and paints again only the boxes of the paths that went.
     pub fn retain(&mut self, mut keep: impl FnMut(usize, &Placed) -> bool) {
+        let (width, height) = self.size();
+        let mut dropped: Vec<PixelBox> = Vec::new();
         let mut index = 0;
         self.paths.retain(|placed| {
             index += 1;
-            keep(index - 1, placed)
+            let kept = keep(index - 1, placed);
+            if !kept && let Some(bbox) = placed.shape.pixel_box(width, height) {
+                dropped.push(bbox);
+            }
+            kept
         });
-        self.repaint();
+        // Past the canvas's area in boxes, one whole repaint is cheaper.
+        if dropped.iter().map(PixelBox::area).sum::<u64>() > u64::from(width) * u64::from(height) {
+            self.repaint();
+        } else {
+            dropped.iter().for_each(|&bbox| self.repaint_box(bbox));
+        }
+    }
+
+    /// Paints the pixels of `bbox` again from the paths that reach them.
+    fn repaint_box(&mut self, bbox: PixelBox) {
+        let size = self.size();
+        let mut window = Pixmap::new(bbox.width(), bbox.height()).expect("a non-empty box");
+        for placed in &self.paths {
+            let reaches =
+                placed.shape.pixel_box(size.0, size.1).is_some_and(|b| b.intersection(&bbox).is_some());
+            if reaches {
+                paint_exact(&mut window, &placed.shape, size, (bbox.x0(), bbox.y0()));
+            }
+        }
+        self.restore(bbox, &window);
     }
 
     /// Sum of squared differences over the whole image.
     pub fn total_error(&self) -> f64 {
-        let whole = BoundingBox { x0: 0, y0: 0, x1: self.target.width(), y1: self.target.height() };
-        self.error(whole, Scope::All)
-    }
-
-    /// Takes the scene apart: its paths and segmentation.
-    pub fn into_parts(self) -> (Vec<Placed>, Segmentation) {
-        (self.paths, self.segmentation)
+        let (width, height) = self.size();
+        self.error(PixelBox::image(width, height), Scope::All)
     }
 
     /// Whether pixel `index` (row-major) is one of the `scope` pixels.
@@ -292,30 +385,45 @@ impl Scene {
         (self.target.width(), self.target.height())
     }
 
-    /// The pixels a shape can change: its bounds, widened by a pixel for anti-aliasing, within
-    /// the canvas; `None` when that is empty or not finite.
-    pub fn pixel_box(&self, path: &impl Filled) -> Option<BoundingBox> {
+    /// The pixels a shape can change ([`Filled::pixel_box`] on this canvas).
+    pub fn pixel_box(&self, path: &impl Filled) -> Option<PixelBox> {
         let (width, height) = self.size();
-        let [x0, y0, x1, y1] = path.pixel_box(width, height)?;
-        Some(BoundingBox { x0, y0, x1, y1 })
+        path.pixel_box(width, height)
     }
 
-    fn save(&self, bbox: BoundingBox) -> Pixmap {
-        let rect = IntRect::from_xywh(bbox.x0 as i32, bbox.y0 as i32, bbox.width(), bbox.height())
+    fn save(&self, bbox: PixelBox) -> Pixmap {
+        let rect = IntRect::from_xywh(bbox.x0() as i32, bbox.y0() as i32, bbox.width(), bbox.height())
             .expect("a non-empty box");
         self.canvas.clone_rect(rect).expect("the box lies inside the canvas")
     }
 
-    fn restore(&mut self, bbox: BoundingBox, saved: &Pixmap) {
+    fn restore(&mut self, bbox: PixelBox, saved: &Pixmap) {
         let width = self.target.width() as usize;
         let row_bytes = 4 * bbox.width() as usize;
         let data = self.canvas.data_mut();
         for (row, source) in saved.data().chunks_exact(row_bytes).enumerate() {
-            let start = 4 * ((bbox.y0 as usize + row) * width + bbox.x0 as usize);
+            let start = 4 * ((bbox.y0() as usize + row) * width + bbox.x0() as usize);
             data[start..start + row_bytes].copy_from_slice(source);
         }
     }
 }
+
+/// Sum of squared differences (RGB over white against `target`) per region of `segmentation`
+/// of the premultiplied `canvas`.
+pub fn region_errors(canvas: &Pixmap, target: &Rgb32FImage, segmentation: &Segmentation) -> Vec<f64> {
+    let mut errors = vec![0.0; segmentation.regions.len()];
+    for (index, (pixel, &label)) in target.pixels().zip(&segmentation.labels).enumerate() {
+        errors[label as usize] += pixel_error(canvas.data(), index, pixel);
+    }
+    errors
+}
+
+/// The most a path can lower the squared error of one pixel (three channels) without drawing
+/// anything a viewer could see: the canvas holds 8 bits a channel, so a flat region whose exact
+/// colour falls between two levels is off by up to half a level everywhere, and anti-aliased
+/// edges dithering between the two levels "improve" it. On a flat picture E_r otherwise added
+/// hundreds of such paths.
+pub const ROUNDING_GAIN: f64 = 3.0 * (0.5 / 255.0) * (0.5 / 255.0);
 
 /// A premultiplied channel over white, in [0, 1].
 fn over_white(channel: u8, alpha: u8) -> f32 {
@@ -358,6 +466,21 @@ mod tests {
     }
 
     #[test]
+    fn stages_are_counted_by_name() {
+        let image = target();
+        let segmentation = slic(&image, &SlicOptions { n_segments: 4, ..Default::default() }).unwrap();
+        let mut scene = Scene::new(image, segmentation);
+        let whole = quad([0.0, 0.0], [1.0, 1.0], [0.5; 3]).into();
+        assert!(scene.push(Placed { shape: whole, region: None, origin: Origin::Background }));
+        assert!(scene.push(square([0.0, 0.0], [0.5, 0.5], [0.1; 3])));
+        let counts = scene.counts();
+        assert_eq!((counts.background, counts.refine, counts.total()), (1, 1, 2));
+        assert_eq!(Origin::ALL.map(|o| counts.of(o)), [1, 0, 0, 1]);
+        let json = serde_json::to_value(counts).unwrap();
+        assert!(Origin::ALL.iter().all(|o| json[o.name()] == counts.of(*o)), "{json}");
+    }
+
+    #[test]
     fn fitted_colours_are_the_least_squares_fill() {
         let image = target();
         let segmentation = slic(&image, &SlicOptions { n_segments: 4, ..Default::default() }).unwrap();
@@ -392,17 +515,17 @@ mod tests {
         assert!(scene.push(square([0.0, 0.0], [1.0, 1.0], [0.5; 3])));
         let before = scene.canvas().clone();
         // Blue on the red half makes it worse: rejected, canvas untouched.
-        assert!(scene.try_push(square([0.1, 0.1], [0.4, 0.6], [0.0, 0.0, 1.0]), Scope::All, 0.0).is_none());
+        assert!(scene.try_push(square([0.1, 0.1], [0.4, 0.6], [0.0, 0.0, 1.0]), Scope::All).is_none());
         assert_eq!(scene.canvas().data(), before.data());
         // Red on the red half helps.
         assert!(
             scene
-                .try_push(square([0.0, 0.0], [0.5, 1.0], [0.9, 0.2, 0.1]), Scope::All, 0.0)
+                .try_push(square([0.0, 0.0], [0.5, 1.0], [0.9, 0.2, 0.1]), Scope::All)
                 .is_some_and(|gain| gain > 0.0)
         );
         assert_eq!(scene.len(), 2);
         // Off the canvas: nothing to gain, nothing kept.
-        assert!(scene.try_push(square([2.0, 2.0], [3.0, 3.0], [0.9, 0.2, 0.1]), Scope::All, 0.0).is_none());
+        assert!(scene.try_push(square([2.0, 2.0], [3.0, 3.0], [0.9, 0.2, 0.1]), Scope::All).is_none());
         // The canvas is the exact rendering of the kept paths.
         let rendered = render_exact(&scene.scene(), 40, 30, [1.0; 3]);
         let drawn = scene.canvas_image();
@@ -412,7 +535,22 @@ mod tests {
             }
         }
         let total: f64 = scene.region_errors().iter().sum();
-        let whole = BoundingBox { x0: 0, y0: 0, x1: 40, y1: 30 };
-        assert!((total - scene.error(whole, Scope::All)).abs() < 1e-6 * total.max(1.0));
+        assert!((total - scene.error(PixelBox::image(40, 30), Scope::All)).abs() < 1e-6 * total.max(1.0));
+    }
+
+    #[test]
+    fn dropping_paths_repaints_their_boxes_to_the_full_rendering() {
+        let image = target();
+        let segmentation = slic(&image, &SlicOptions { n_segments: 4, ..Default::default() }).unwrap();
+        let mut scene = Scene::new(image, segmentation);
+        assert!(scene.push(square([0.0, 0.0], [1.0, 1.0], [0.5; 3])));
+        for (i, lo) in [[0.1, 0.1], [0.3, 0.2], [0.5, 0.5], [0.05, 0.6]].into_iter().enumerate() {
+            let color = [0.2 * i as f32, 0.9, 0.3];
+            assert!(scene.push(square(lo, [lo[0] + 0.37, lo[1] + 0.33], color)));
+        }
+        scene.retain(|index, _| index % 2 == 0);
+        assert_eq!(scene.len(), 3);
+        let rendered = render_exact(&scene.scene(), 40, 30, [1.0; 3]);
+        assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths kept");
     }
 }

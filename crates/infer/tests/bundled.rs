@@ -3,9 +3,9 @@
 
 use std::process::Command;
 
+use common::decode::load;
+use common::psnr;
 use image::{Rgb, Rgb32FImage};
-use infer::decode::load;
-use infer::metrics::psnr;
 use superpixel::{SlicOptions, slic};
 
 /// The SVG rendered by resvg on a transparent canvas: RGB over white, and each pixel's alpha.

@@ -1,9 +1,9 @@
 //! Fuzz-style robustness: corrupted image files and wild path parameters never panic.
 
+use common::decode::load;
 use image::{Rgb, RgbImage};
-use infer::decode::load;
 use rand::{Rng, SeedableRng};
-use raster::{Path, to_svg};
+use raster::{Filled, Path, SvgError, to_svg};
 
 #[test]
 fn corrupted_image_bytes_give_an_image_or_an_error() {
@@ -11,6 +11,7 @@ fn corrupted_image_bytes_give_an_image_or_an_error() {
     std::fs::create_dir_all(&dir).unwrap();
     let picture = RgbImage::from_fn(37, 23, |x, y| Rgb([(x * 7) as u8, (y * 11) as u8, (x * y) as u8]));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    let (mut decoded, mut refused) = (0, 0);
     for format in ["png", "jpg", "bmp", "gif", "webp", "tiff"] {
         let clean = dir.join(format!("clean.{format}"));
         picture.save(&clean).unwrap();
@@ -30,13 +31,22 @@ fn corrupted_image_bytes_give_an_image_or_an_error() {
             }
             let file = dir.join(format!("broken.{format}"));
             std::fs::write(&file, &broken).unwrap();
-            if let Ok(loaded) = load(&file, 64) {
-                assert!(loaded.image.width() >= 1 && loaded.image.height() >= 1);
-                assert!(loaded.image.pixels().all(|p| p.0.iter().all(|c| c.is_finite())));
+            match load(&file, 64) {
+                Ok(loaded) => {
+                    decoded += 1;
+                    assert!(loaded.image.width() >= 1 && loaded.image.height() >= 1);
+                    assert!(loaded.image.pixels().all(|p| p.0.iter().all(|c| c.is_finite())));
+                }
+                Err(err) => {
+                    refused += 1;
+                    assert_eq!(err.input, file.display().to_string(), "the error names the file: {err}");
+                }
             }
         }
     }
     std::fs::remove_dir_all(&dir).unwrap();
+    // Both outcomes were exercised: damage some decoders tolerate, and damage refused.
+    assert!(decoded >= 20 && refused >= 20, "{decoded} decoded, {refused} refused of 240");
 }
 
 #[test]
@@ -60,12 +70,20 @@ fn wild_path_parameters_give_valid_svg_or_an_error() {
                 alpha: pick(&mut rng),
             })
             .collect();
-        match to_svg(&paths, rng.random_range(0..50), rng.random_range(0..50), Some([pick(&mut rng); 3])) {
+        let (width, height) = (rng.random_range(0..50), rng.random_range(0..50));
+        let broken = paths.iter().position(|path| !path.is_finite());
+        match to_svg(&paths, width, height, Some([pick(&mut rng); 3])) {
             Ok(svg) => {
                 resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default()).expect("the SVG parses");
+                assert!(
+                    width > 0 && height > 0 && broken.is_none(),
+                    "{width}×{height}, path {broken:?} broken"
+                );
                 valid += 1;
             }
-            Err(err) => assert!(!err.to_string().is_empty()),
+            // Refused for the first reason there is: an empty canvas, then the first broken path.
+            Err(SvgError::EmptyCanvas { .. }) => assert!(width == 0 || height == 0),
+            Err(SvgError::NonFinite { index }) => assert_eq!(Some(index), broken),
         }
     }
     assert!(valid > 10, "only {valid} documents were written");

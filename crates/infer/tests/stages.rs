@@ -1,13 +1,15 @@
 //! Stage by stage the drawing can only get better: fallback ≤ coarse ≤ coarse + refinement ≤
 //! fine-tuned, at one budget, with the bundled models.
 
+use std::ops::ControlFlow;
+
 use burn::tensor::Device;
+use common::decode::load;
+use common::psnr;
 use image::{Rgb, Rgb32FImage};
 use infer::coarse::{CoarseBudget, draw_coarse};
-use infer::decode::load;
 use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
-use infer::metrics::psnr;
 use infer::models::{Models, bundled};
 use infer::refine::draw_refinement;
 use infer::scene::{Origin, Scene};
@@ -108,7 +110,10 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
 
     let mut reports: Vec<Progress> = Vec::new();
     let options = FinetuneOptions { budget: Budget::Steps(20), ..FinetuneOptions::default() };
-    let steps = finetune_with_progress(&mut scene, &options, &mut |p| reports.push(*p));
+    let steps = finetune_with_progress(&mut scene, &options, &mut |p| {
+        reports.push(*p);
+        ControlFlow::Continue(())
+    });
     let after = psnr(&scene.canvas_image(), &image);
     let last = reports.last().expect("at least one turn was reported");
     assert_eq!(last.steps, steps);

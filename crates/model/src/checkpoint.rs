@@ -6,9 +6,12 @@
 //! `optimizer`, so nothing of its state is lost. Metadata keys are `supersvg.format`,
 //! `supersvg.stage`, `supersvg.model` (the [`ModelConfig`] as JSON), `supersvg.training` (an
 //! opaque JSON string owned by the trainer) and `supersvg.inference` (the measured
-//! [`OperatingPoint`] as JSON, in coarse checkpoints that have one). Loading needs no flags: the configuration rebuilds
-//! the model before its weights are applied. Writes are atomic (a scratch file renamed over the
-//! target), so an interrupted save never leaves a partial checkpoint.
+//! [`OperatingPoint`] as JSON, in coarse checkpoints that have one) and `supersvg.checksum` (of
+//! the model tensors: names, dtypes, shapes and bytes). Loading needs no flags: the configuration
+//! rebuilds the model before its weights are applied. Loading refuses a file whose weights do not
+//! match their checksum (damaged on disk or in transfer) or hold a NaN or infinity, naming it.
+//! Writes are atomic (`common::write::write_atomic`), so an interrupted save never leaves a
+//! partial checkpoint.
 
 use std::path::{Path, PathBuf};
 
@@ -22,9 +25,27 @@ use crate::config::{InvalidSetting, ModelConfig};
 use crate::operating::OperatingPoint;
 use crate::refine::RefineModel;
 
-const FORMAT: &str = "supersvg-checkpoint/1";
+const FORMAT: &str = "supersvg-checkpoint/2";
+/// The format before the weights' checksum: still read, without the check.
+const FORMAT_UNCHECKED: &str = "supersvg-checkpoint/1";
 const MODEL_PREFIX: &str = "model/";
 const OPTIMIZER_BLOB: &str = "optimizer";
+
+/// The metadata keys of a checkpoint file, written and read only through these.
+mod key {
+    /// The file format's version ([`super::FORMAT`]).
+    pub const FORMAT: &str = "supersvg.format";
+    /// [`super::Stage::name`].
+    pub const STAGE: &str = "supersvg.stage";
+    /// The model configuration, JSON.
+    pub const MODEL: &str = "supersvg.model";
+    /// The trainer's state, JSON (optional).
+    pub const TRAINING: &str = "supersvg.training";
+    /// The operating point, JSON (optional).
+    pub const INFERENCE: &str = "supersvg.inference";
+    /// [`super::checksum`] of the model tensors, 16 hex digits.
+    pub const CHECKSUM: &str = "supersvg.checksum";
+}
 
 /// Which network a checkpoint holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,12 +57,20 @@ pub enum Stage {
 }
 
 impl Stage {
+    /// Both stages.
+    pub const ALL: [Stage; 2] = [Stage::Coarse, Stage::Refine];
+
     /// The stage's name as written in checkpoint files ("coarse", "refine").
     pub fn name(self) -> &'static str {
         match self {
             Stage::Coarse => "coarse",
             Stage::Refine => "refine",
         }
+    }
+
+    /// The stage named `name` ([`Stage::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|stage| stage.name() == name)
     }
 }
 
@@ -54,6 +83,12 @@ pub enum CheckpointError {
         /// The checkpoint file.
         path: PathBuf,
     },
+    /// A folder where a checkpoint file was expected.
+    #[error("{path}: is a folder, not a checkpoint file")]
+    Folder {
+        /// The path given.
+        path: PathBuf,
+    },
     /// The file could not be written.
     #[error("{path}: {source}")]
     Write {
@@ -61,6 +96,14 @@ pub enum CheckpointError {
         path: PathBuf,
         /// The burnpack writer's reason.
         source: burn_pack::Error,
+    },
+    /// The file could not be stored.
+    #[error("{path}: {source}")]
+    Store {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// The file system's reason.
+        source: std::io::Error,
     },
     /// The file is not a supersvg checkpoint, or its contents are damaged.
     #[error("{path}: not a supersvg checkpoint ({problem})")]
@@ -123,6 +166,19 @@ pub enum FormatProblem {
     /// The file holds no model weights.
     #[error("no model weights")]
     NoWeights,
+    /// The weights are not the ones written: damaged on disk or in transfer.
+    #[error(
+        "the weights do not match their checksum (stored {stored}, computed {computed}): the file is damaged"
+    )]
+    Checksum {
+        /// The checksum in the metadata.
+        stored: String,
+        /// The checksum of the weights read.
+        computed: String,
+    },
+    /// A weight is NaN or infinite: the model was saved from a diverged training.
+    #[error("weight `{0}` holds a NaN or an infinity")]
+    NonFinite(String),
 }
 
 /// Why stored weights cannot be applied to a model.
@@ -190,26 +246,34 @@ impl Checkpoint {
             let data = TensorData::new(optimizer.to_vec(), [optimizer.len()]);
             tensors.push(Entry { name: OPTIMIZER_BLOB.into(), id: None, data });
         }
+        let model_entries = tensors.iter().filter(|e| e.name != OPTIMIZER_BLOB);
+        let sum =
+            checksum(model_entries.map(|e| (e.name.strip_prefix(MODEL_PREFIX).unwrap_or(&e.name), &e.data)));
         let tensors = tensors.into_iter().map(Entry::into_pack).collect();
         let model_json = serde_json::to_string(&self.model_config).expect("configs serialize");
         let mut writer = Writer::new(tensors)
-            .with_metadata("supersvg.format", FORMAT)
-            .with_metadata("supersvg.stage", self.stage.name())
-            .with_metadata("supersvg.model", &model_json)
+            .with_metadata(key::FORMAT, FORMAT)
+            .with_metadata(key::STAGE, self.stage.name())
+            .with_metadata(key::MODEL, &model_json)
+            .with_metadata(key::CHECKSUM, &sum)
             .auto_extension(false);
         if let Some(training) = &self.training {
-            writer = writer.with_metadata("supersvg.training", training);
+            writer = writer.with_metadata(key::TRAINING, training);
         }
         if let Some(point) = &self.inference {
-            writer = writer
-                .with_metadata("supersvg.inference", &serde_json::to_string(point).expect("serializes"));
+            writer = writer.with_metadata(key::INFERENCE, &serde_json::to_string(point).expect("serializes"));
         }
-        writer.write_to_file(path).map_err(write)
+        let bytes = writer.into_bytes().map_err(write)?;
+        common::write::write_atomic(path, &bytes)
+            .map_err(|source| CheckpointError::Store { path: path.to_path_buf(), source })
     }
 
     /// Reads a checkpoint from `path`.
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
-        if !path.is_file() {
+        if path.is_dir() {
+            return Err(CheckpointError::Folder { path: path.to_path_buf() });
+        }
+        if !path.exists() {
             return Err(CheckpointError::Missing { path: path.to_path_buf() });
         }
         Self::read(path).map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
@@ -220,19 +284,16 @@ impl Checkpoint {
         let reader = Reader::from_file(path)?;
         let metadata = reader.metadata().clone();
         let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
-        let format = get("supersvg.format")?;
-        if format != FORMAT {
+        let format = get(key::FORMAT)?;
+        if format != FORMAT && format != FORMAT_UNCHECKED {
             return Err(FormatProblem::UnsupportedFormat(format));
         }
-        let stage = match get("supersvg.stage")?.as_str() {
-            "coarse" => Stage::Coarse,
-            "refine" => Stage::Refine,
-            other => return Err(FormatProblem::UnknownStage(other.to_string())),
-        };
+        let stage = get(key::STAGE)?;
+        let stage = Stage::from_name(&stage).ok_or(FormatProblem::UnknownStage(stage))?;
         let model_config: ModelConfig =
-            serde_json::from_str(&get("supersvg.model")?).map_err(FormatProblem::ModelConfig)?;
+            serde_json::from_str(&get(key::MODEL)?).map_err(FormatProblem::ModelConfig)?;
         model_config.validate().map_err(FormatProblem::InvalidModelConfig)?;
-        let inference = match metadata.get("supersvg.inference") {
+        let inference = match metadata.get(key::INFERENCE) {
             None => None,
             Some(json) => {
                 let point: OperatingPoint =
@@ -241,13 +302,14 @@ impl Checkpoint {
                 Some(point)
             }
         };
-        let (model, optimizer) = split(reader.into_tensors()?)?;
+        let stored = (format == FORMAT).then(|| get(key::CHECKSUM)).transpose()?;
+        let (model, optimizer) = split(reader.into_tensors()?, stored.as_deref())?;
         Ok(Self {
             stage,
             model_config,
             model,
             optimizer,
-            training: metadata.get("supersvg.training").cloned(),
+            training: metadata.get(key::TRAINING).cloned(),
             inference,
         })
     }
@@ -335,8 +397,40 @@ fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, burn_pack::Error> {
     pack(entries)
 }
 
-/// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers.
-fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), FormatProblem> {
+/// FNV-1a (64 bits) over each tensor's name, dtype, shape and bytes, in order: what a flipped
+/// bit anywhere in the weights changes.
+fn checksum<'a>(tensors: impl Iterator<Item = (&'a str, &'a TensorData)>) -> String {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let mut hash = OFFSET;
+    let mut feed = |bytes: &[u8]| {
+        for &byte in bytes {
+            hash = (hash ^ u64::from(byte)).wrapping_mul(PRIME);
+        }
+    };
+    for (name, data) in tensors {
+        feed(name.as_bytes());
+        feed(format!("{:?}{:?}", data.dtype(), data.shape()).as_bytes());
+        feed(data.as_bytes());
+    }
+    format!("{hash:016x}")
+}
+
+/// Whether every value of a float tensor is finite (other tensors are).
+fn is_finite(data: &TensorData) -> bool {
+    if !data.dtype().is_float() {
+        return true;
+    }
+    let values = data.clone().convert_dtype(DType::F32);
+    values.as_slice::<f32>().is_ok_and(|values| values.iter().all(|v| v.is_finite()))
+}
+
+/// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers, checking the
+/// model's against `stored` (its checksum, when the format has one) and for non-finite values.
+fn split(
+    tensors: Vec<burn_pack::Tensor>,
+    stored: Option<&str>,
+) -> Result<(Bytes, Option<Bytes>), FormatProblem> {
     let (mut model, mut optimizer) = (Vec::new(), None);
     for tensor in tensors {
         let entry = Entry::from_pack(tensor)?;
@@ -350,6 +444,15 @@ fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Bytes, Option<Bytes>), Form
     }
     if model.is_empty() {
         return Err(FormatProblem::NoWeights);
+    }
+    if let Some(stored) = stored {
+        let computed = checksum(model.iter().map(|e| (e.name.as_str(), &e.data)));
+        if computed != stored {
+            return Err(FormatProblem::Checksum { stored: stored.to_string(), computed });
+        }
+    }
+    if let Some(entry) = model.iter().find(|e| !is_finite(&e.data)) {
+        return Err(FormatProblem::NonFinite(entry.name.clone()));
     }
     Ok((pack(model)?, optimizer))
 }

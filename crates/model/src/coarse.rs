@@ -50,3 +50,41 @@ impl CoarseModel {
         &self.encoder
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use burn::tensor::Distribution;
+
+    use super::*;
+    use crate::config::Preset;
+
+    #[test]
+    fn only_the_visibility_output_carries_the_surrogate_gradient_of_the_path_count() {
+        let device = Device::flex().autodiff();
+        let config = ModelConfig {
+            input_size: 32,
+            embed_dim: 48,
+            depth: 1,
+            heads: 2,
+            paths: 6,
+            query_dim: 32,
+            query_heads: 2,
+            ..ModelConfig::preset(Preset::Cpu)
+        };
+        let model = CoarseModel::new(&config, &device);
+        let crops = Tensor::random([2, 3, 32, 32], Distribution::Uniform(-1.0, 1.0), &device);
+        let grads = model.forward(crops.clone()).alpha().sum().backward();
+        let bias = model.head.bias.as_ref().expect("the head has a bias");
+        let gradient: Vec<f32> = bias.grad(&grads).expect("a gradient").try_to_vec_as().unwrap();
+        // ∂Σβ/∂b for the visibility output: Σ over paths of σ'(p − 0.5) · p(1 − p), p = σ(z).
+        let features = model.decoder.forward(model.encoder.forward(crops));
+        let z = model.head.forward(features) + model.prior.val().unsqueeze();
+        let p: Vec<f32> = sigmoid(z).narrow(2, PARAMS_OPAQUE, 1).try_to_vec_as().unwrap();
+        let s = |p: f32| 1.0 / (1.0 + (0.5 - p).exp());
+        let expected: f32 = p.iter().map(|&p| s(p) * (1.0 - s(p)) * p * (1.0 - p)).sum();
+        let visibility = gradient[PARAMS_OPAQUE];
+        assert!((visibility - expected).abs() <= 1e-4 * expected, "{visibility} vs {expected}");
+        assert!(expected > 0.1, "12 paths give a gradient of {expected}");
+        assert!(gradient[..PARAMS_OPAQUE].iter().all(|&g| g == 0.0), "shape and colour: {gradient:?}");
+    }
+}

@@ -14,6 +14,10 @@ use superpixel::{CropOptions, RegionCrop, Segmentation, resample_area};
 
 use crate::config::{InvalidSetting, ModelConfig};
 
+/// The smallest region (pixels) a model is trained or validated on: a 4 × 4 patch, the least
+/// that resized to the model's input still holds a shape rather than a few blurred cells.
+pub const MIN_REGION_PIXELS: usize = 16;
+
 /// How region crops are cut, stored with the architecture in every checkpoint.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -22,7 +22,7 @@ pub use checkpoint::{
 pub use coarse::CoarseModel;
 pub use config::{InvalidSetting, ModelConfig, Preset};
 pub use decoder::PathDecoder;
-pub use input::{CropBatch, InputSpec, canvas_cells, crop_to_image};
+pub use input::{CropBatch, InputSpec, MIN_REGION_PIXELS, canvas_cells, crop_to_image};
 pub use operating::OperatingPoint;
 pub use refine::RefineModel;
 pub use vit::VitEncoder;

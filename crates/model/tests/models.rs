@@ -58,17 +58,6 @@ fn coarse_and_refine_shapes_and_ranges_for_both_presets() {
 }
 
 #[test]
-fn visibility_has_the_surrogate_gradient_through_the_model() {
-    let device = Device::flex().autodiff();
-    let config = tiny();
-    let coarse = CoarseModel::new(&config, &device);
-    let paths = coarse.forward(crops(2, &config, &device));
-    let grads = paths.alpha().sum().backward();
-    let head_grad = GradientsParams::from_grads(grads, &coarse);
-    assert!(!head_grad.is_empty(), "the visible-path count reaches the weights");
-}
-
-#[test]
 fn inheritance_copies_the_encoder_exactly_and_nothing_else() {
     let device = Device::flex();
     let config = tiny();
@@ -176,7 +165,57 @@ fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
     let err = load_coarse(&dir.join("missing.ckpt"), &device).err().unwrap();
     assert!(matches!(err, CheckpointError::Missing { .. }), "{err}");
     assert!(err.to_string().contains("missing.ckpt"), "{err}");
+    let err = load_coarse(&dir, &device).err().unwrap();
+    assert!(
+        matches!(err, CheckpointError::Folder { .. }) && err.to_string().contains("is a folder"),
+        "{err}"
+    );
+    let err = load_coarse(std::path::Path::new("/dev/null"), &device).err().unwrap();
+    assert!(matches!(err, CheckpointError::Format { .. }) && err.to_string().contains("/dev/null"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn damaged_or_diverged_weights_are_refused_by_name() {
+    let dir = std::env::temp_dir().join(format!("supersvg-damaged-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let device = Device::flex();
+    let config = tiny();
+    let path = dir.join("coarse.ckpt");
+    Checkpoint::of_model(Stage::Coarse, &config, &CoarseModel::new(&config, &device), DType::F32)
+        .save(&path)
+        .unwrap();
+    assert!(load_coarse(&path, &device).is_ok());
+    // Four bytes flipped in the weights (the end of the file is tensor data).
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = bytes.len() - 40;
+    bytes[at..at + 4].iter_mut().for_each(|b| *b ^= 0x5a);
+    let damaged = dir.join("damaged.ckpt");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let err = load_coarse(&damaged, &device).err().expect("a damaged file is refused");
+    assert!(matches!(err, CheckpointError::Format { problem: FormatProblem::Checksum { .. }, .. }), "{err}");
+    assert!(err.to_string().contains("damaged.ckpt") && err.to_string().contains("checksum"), "{err}");
+    // A model whose weights went NaN, saved with a valid checksum: refused all the same.
+    let mut model = CoarseModel::new(&config, &device);
+    model = model.map(&mut NanEverything);
+    let diverged = dir.join("diverged.ckpt");
+    Checkpoint::of_model(Stage::Coarse, &config, &model, DType::F16).save(&diverged).unwrap();
+    let err = load_coarse(&diverged, &device).err().expect("NaN weights are refused");
+    assert!(matches!(err, CheckpointError::Format { problem: FormatProblem::NonFinite(_), .. }), "{err}");
+    assert!(err.to_string().contains("diverged.ckpt"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Turns every float parameter into NaN.
+struct NanEverything;
+
+impl burn::module::ModuleMapper for NanEverything {
+    fn map_float<const D: usize>(
+        &mut self,
+        param: burn::module::Param<Tensor<D>>,
+    ) -> burn::module::Param<Tensor<D>> {
+        param.map(|tensor| tensor.mul_scalar(f32::NAN))
+    }
 }
 
 #[test]

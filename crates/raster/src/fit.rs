@@ -1,6 +1,8 @@
 //! Fitting a path (four cubics, closed) to an outline: the simplest drawing of a shape.
 
-use crate::geometry::{bernstein, cubic_point};
+use common::signed_area;
+
+use crate::geometry::{bernstein, cubic_derivative, cubic_point, straight_cubic};
 use crate::path::{POINTS, Path, SEGMENTS};
 
 /// Points the outline is resampled to before fitting (16 per cubic): enough to follow a
@@ -127,15 +129,9 @@ fn grown(samples: &[[f32; 2]], grow: f32) -> Vec<[f32; 2]> {
         return samples.to_vec();
     }
     let n = samples.len();
-    let twice_area: f32 = (0..n)
-        .map(|i| {
-            let (a, b) = (samples[i], samples[(i + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum();
     // For an outline turning clockwise on screen (positive area, y down) the outward side of
     // the tangent (dx, dy) is (dy, −dx).
-    let sign = if twice_area >= 0.0 { 1.0 } else { -1.0 };
+    let sign = if signed_area(samples) >= 0.0 { 1.0 } else { -1.0 };
     (0..n)
         .map(|i| {
             let (before, after) = (samples[(i + n - 1) % n], samples[(i + 1) % n]);
@@ -199,18 +195,13 @@ fn handles(run: &[[f32; 2]], t: &[f32], first: [f32; 2], last: [f32; 2]) -> [[f3
         }
     }
     let det = a11 * a22 - a12 * a12;
-    let straight = [lerp(first, last, 1.0 / 3.0), lerp(first, last, 2.0 / 3.0)];
     if det.abs() <= 1e-9 * (a11 * a22).max(f32::MIN_POSITIVE) {
-        return [first, straight[0], straight[1], last];
+        return straight_cubic(first, last);
     }
     let solve = |c: usize| ((a22 * r1[c] - a12 * r2[c]) / det, (a11 * r2[c] - a12 * r1[c]) / det);
     let ((x1, x2), (y1, y2)) = (solve(0), solve(1));
     let control = [first, [x1, y1], [x2, y2], last];
-    if control.iter().flatten().all(|v| v.is_finite()) {
-        control
-    } else {
-        [first, straight[0], straight[1], last]
-    }
+    if control.iter().flatten().all(|v| v.is_finite()) { control } else { straight_cubic(first, last) }
 }
 
 /// One Newton step of `t` towards the curve point nearest to `q`, kept in [0, 1].
@@ -218,12 +209,9 @@ fn newton_step(control: &[[f32; 2]; 4], q: [f32; 2], t: f32) -> f32 {
     let [p0, p1, p2, p3] = *control;
     let s = 1.0 - t;
     let point = cubic_point(control, t);
-    let mut first = [0.0; 2];
-    let mut second = [0.0; 2];
-    for c in 0..2 {
-        first[c] = 3.0 * (s * s * (p1[c] - p0[c]) + 2.0 * s * t * (p2[c] - p1[c]) + t * t * (p3[c] - p2[c]));
-        second[c] = 6.0 * (s * (p2[c] - 2.0 * p1[c] + p0[c]) + t * (p3[c] - 2.0 * p2[c] + p1[c]));
-    }
+    let first = cubic_derivative(control, t);
+    let second =
+        [0, 1].map(|c| 6.0 * (s * (p2[c] - 2.0 * p1[c] + p0[c]) + t * (p3[c] - 2.0 * p2[c] + p1[c])));
     let offset = [point[0] - q[0], point[1] - q[1]];
     let numerator = offset[0] * first[0] + offset[1] * first[1];
     let denominator =
@@ -236,10 +224,6 @@ fn newton_step(control: &[[f32; 2]; 4], q: [f32; 2], t: f32) -> f32 {
 
 fn distance(a: [f32; 2], b: [f32; 2]) -> f32 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
-}
-
-fn lerp(a: [f32; 2], b: [f32; 2], t: f32) -> [f32; 2] {
-    [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
 }
 
 #[cfg(test)]

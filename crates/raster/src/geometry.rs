@@ -1,7 +1,9 @@
-//! Geometry of paths on the CPU: evaluating and flattening the cubics, enclosed area, bounds.
+//! Geometry of paths on the CPU: evaluating, differentiating and flattening the cubics, the
+//! straight cubic, the area a path encloses.
 //!
 //! The one owner of Bézier evaluation: the soft rasterizer's flattening matrix, the area a path
-//! encloses and the fitting of outlines all take their weights from [`bernstein`].
+//! encloses and the fitting of outlines all take their weights from [`bernstein`], their
+//! tangents from [`cubic_derivative`] and their straight segments from [`straight_cubic`].
 
 use crate::path::{Path, SEGMENTS};
 #[cfg(test)]
@@ -32,17 +34,11 @@ pub fn cubic_derivative(control: &[[f32; 2]; 4], t: f32) -> [f32; 2] {
     [0, 1].map(|d| 3.0 * (s * s * (p1[d] - p0[d]) + 2.0 * s * t * (p2[d] - p1[d]) + t * t * (p3[d] - p2[d])))
 }
 
-/// An axis-aligned rectangle in the unit square of a canvas, `[x0, x1] × [y0, y1]`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Bounds {
-    /// Left edge.
-    pub x0: f32,
-    /// Top edge.
-    pub y0: f32,
-    /// Right edge.
-    pub x1: f32,
-    /// Bottom edge.
-    pub y1: f32,
+/// The cubic from `a` to `b` that is the straight segment between them, its handles at a third
+/// and two thirds (so it is also evenly parameterized).
+pub fn straight_cubic(a: [f32; 2], b: [f32; 2]) -> [[f32; 2]; 4] {
+    let at = |t: f32| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+    [a, at(1.0 / 3.0), at(2.0 / 3.0), b]
 }
 
 impl Path {
@@ -58,18 +54,10 @@ impl Path {
         points
     }
 
-    /// The area the path encloses in the canvas's unit square (of its outline flattened to 16
-    /// edges per cubic, shoelace formula), signed: positive when the outline turns clockwise on
-    /// screen (y down). Self-overlapping parts count with their winding.
+    /// The area the path encloses in the canvas's unit square ([`common::signed_area`] of its
+    /// outline flattened to 16 edges per cubic).
     pub fn signed_area(&self) -> f32 {
-        let points = self.flatten(16);
-        let twice: f32 = (0..points.len())
-            .map(|i| {
-                let (a, b) = (points[i], points[(i + 1) % points.len()]);
-                a[0] * b[1] - b[0] * a[1]
-            })
-            .sum();
-        twice / 2.0
+        common::signed_area(&self.flatten(16))
     }
 }
 
@@ -99,12 +87,17 @@ mod tests {
         assert_eq!(polygon.len(), 32);
         assert_eq!(polygon[0], path.points[0]);
         assert_eq!(polygon[8], path.points[3]);
-        let bounds = path.bounds();
-        assert_eq!(bounds, Bounds { x0: 0.1, y0: -0.2, x1: 0.6, y1: 0.6 });
+        let bounds = path.bounds().unwrap();
+        assert_eq!(bounds, common::Bounds::new(0.1, -0.2, 0.6, 0.6).unwrap());
         let inside = |v: f32, lo: f32, hi: f32| v >= lo - 1e-6 && v <= hi + 1e-6;
         assert!(
-            polygon.iter().all(|&[x, y]| inside(x, bounds.x0, bounds.x1) && inside(y, bounds.y0, bounds.y1))
+            polygon
+                .iter()
+                .all(|&[x, y]| inside(x, bounds.x0(), bounds.x1()) && inside(y, bounds.y0(), bounds.y1()))
         );
+        let straight = straight_cubic([0.0, 3.0], [6.0, 0.0]);
+        assert_eq!(cubic_point(&straight, 0.5), [3.0, 1.5]);
+        assert_eq!(cubic_derivative(&straight, 0.2), [6.0, -3.0]);
         assert!(bernstein(0.3).iter().sum::<f32>() - 1.0 < 1e-6);
     }
 }

@@ -11,6 +11,7 @@
 
 use std::ops::Range;
 
+use common::PixelBox;
 use rayon::prelude::*;
 
 use crate::exact::coverage_exact_window;
@@ -156,11 +157,12 @@ impl Window {
         paths
             .par_iter()
             .map(|path| {
-                let [x0, y0, x1, y1] = path.pixel_box(self.width, self.height)?;
-                let size = (x1 - x0, y1 - y0);
-                let mask = coverage_exact_window(path, (self.width, self.height), (x0, y0), size)?;
+                let bbox = path.pixel_box(self.width, self.height)?;
+                let size = (bbox.width(), bbox.height());
+                let mask =
+                    coverage_exact_window(path, (self.width, self.height), (bbox.x0(), bbox.y0()), size)?;
                 let values = mask.data().iter().map(|&v| f32::from(v) / 255.0).collect();
-                Some(Coverage { bbox: [x0, y0, x1, y1].map(|v| v as usize), values })
+                Some(Coverage { bbox, values })
             })
             .collect()
     }
@@ -200,11 +202,12 @@ impl Window {
         // The rows of each path's box inside the band, and the band's pixels under it there.
         let mut layers: Vec<Option<(Range<usize>, Vec<f32>)>> = Vec::with_capacity(paths.len());
         for (path, coverage) in paths.iter().zip(coverages) {
-            let Some(Coverage { bbox: [x0, y0, x1, y1], values: covers }) = coverage else {
+            let Some(Coverage { bbox, values: covers }) = coverage else {
                 layers.push(None);
                 continue;
             };
-            let (first, last) = ((*y0).max(rows.start), (*y1).min(rows.end));
+            let [x0, y0, x1, y1] = corners(bbox);
+            let (first, last) = (y0.max(rows.start), y1.min(rows.end));
             if first >= last {
                 layers.push(None);
                 continue;
@@ -265,11 +268,12 @@ impl Window {
         for (((path, layer), coverage), gradient) in
             paths.iter().zip(&layers).zip(coverages).zip(gradients.iter_mut()).rev()
         {
-            let (Some((band_rows, below)), Some(drawn @ Coverage { bbox: [x0, y0, x1, _], values: covers })) =
+            let (Some((band_rows, below)), Some(drawn @ Coverage { bbox, values: covers })) =
                 (layer, coverage)
             else {
                 continue;
             };
+            let [x0, y0, x1, _] = corners(bbox);
             let box_width = x1 - x0;
             let span = band_rows.len() * box_width;
             let (mut d_color, mut d_alpha) = ([0.0f32; 3], 0.0f32);
@@ -299,16 +303,16 @@ impl Window {
                     }
                 }
             }
-            let cells = [*x0, band_rows.start, *x1, band_rows.end];
+            let cells = PixelBox::new(x0 as u32, band_rows.start as u32, x1 as u32, band_rows.end as u32)
+                .expect("a band of the path's box");
             let points = self.outline_gradient(path, drawn, cells, &by_coverage);
             *gradient = Path { points, color: d_color, alpha: d_alpha }.to_params();
         }
         Band { render, loss, gradients }
     }
 
-    /// `∮ g · B_P · n ds` for every control point over the part of the outline inside `cells`
-    /// (`[x0, y0, x1, y1]` pixels), `g` per pixel of `cells` (row-major), in the window's unit
-    /// square.
+    /// `∮ g · B_P · n ds` for every control point over the part of the outline inside the pixels
+    /// `cells`, `g` per pixel of `cells` (row-major), in the window's unit square.
     ///
     /// Which side of a piece of outline is inside is read from the path's own coverage a pixel
     /// away on either side, not from the orientation of the whole outline: a tangled outline
@@ -318,12 +322,12 @@ impl Window {
         &self,
         path: &Path,
         coverage: &Coverage,
-        cells: [usize; 4],
+        cells: PixelBox,
         by_coverage: &[f32],
     ) -> [[f32; 2]; POINTS] {
         let (w, h) = (self.width as f32, self.height as f32);
-        let [x0, y0, x1, y1] = cells.map(|v| v as f32);
-        let cells_width = cells[2] - cells[0];
+        let [x0, y0, x1, y1] = corners(&cells).map(|v| v as f32);
+        let cells_width = cells.width() as usize;
         let mut gradient = [[0.0f32; 2]; POINTS];
         for j in 0..SEGMENTS {
             let q = path.segment(j).map(|[x, y]| [x * w, y * h]);
@@ -377,17 +381,22 @@ impl Window {
     }
 }
 
-/// A drawable path's pixel box `[x0, y0, x1, y1]` in the window and its anti-aliased coverage
-/// there (in [0, 1], row-major).
+/// A drawable path's pixel box in the window and its anti-aliased coverage there (in [0, 1],
+/// row-major).
 struct Coverage {
-    bbox: [usize; 4],
+    bbox: PixelBox,
     values: Vec<f32>,
+}
+
+/// A box's corners `[x0, y0, x1, y1]` as indices into the window's buffers.
+fn corners(bbox: &PixelBox) -> [usize; 4] {
+    [bbox.x0(), bbox.y0(), bbox.x1(), bbox.y1()].map(|v| v as usize)
 }
 
 impl Coverage {
     /// The coverage of the pixel holding the point `(x, y)` (window pixels); 0 outside the box.
     fn at(&self, x: f32, y: f32) -> f32 {
-        let [x0, y0, x1, y1] = self.bbox;
+        let [x0, y0, x1, y1] = corners(&self.bbox);
         let (px, py) = (x.floor(), y.floor());
         if !(px >= x0 as f32 && py >= y0 as f32 && px < x1 as f32 && py < y1 as f32) {
             return 0.0;
@@ -579,7 +588,7 @@ mod tests {
             .flat_map(|(i, pixel)| (0..3).map(move |c| (i, c, pixel.0[c])))
             .map(|(i, c, value)| f64::from(ours[c * width * height + i] - f32::from(value) / 255.0).powi(2))
             .sum();
-        let psnr = -10.0 * (squared / (3 * width * height) as f64).log10();
+        let psnr = common::psnr_of_mse(squared / (3 * width * height) as f64);
         assert!(psnr >= 35.0, "{psnr:.1} dB");
     }
 

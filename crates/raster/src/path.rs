@@ -12,6 +12,8 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 
+use crate::geometry::straight_cubic;
+
 /// Number of control points of a path.
 pub const POINTS: usize = 12;
 /// Number of cubic segments of a path.
@@ -22,6 +24,11 @@ pub const COORDS: usize = 2 * POINTS;
 pub const PARAMS_OPAQUE: usize = COORDS + 3;
 /// Parameters of a path: coordinates, RGB, then α.
 pub const PARAMS: usize = PARAMS_OPAQUE + 1;
+
+/// The opacity above which a path is drawn at all: the coarse model's visibility β is a step
+/// at 0.5 (its straight-through surrogate, `dpw::visibility`), so what it emits above it is a
+/// path it means to draw.
+pub const VISIBLE_ALPHA: f32 = 0.5;
 
 const COLOR: std::ops::Range<usize> = COORDS..COORDS + 3;
 const ALPHA: usize = PARAMS_OPAQUE;
@@ -43,12 +50,15 @@ impl Path {
     pub fn quadrilateral(corners: [[f32; 2]; SEGMENTS], color: [f32; 3], alpha: f32) -> Self {
         let mut points = [[0.0; 2]; POINTS];
         for (j, a) in corners.into_iter().enumerate() {
-            let b = corners[(j + 1) % SEGMENTS];
-            for (k, t) in [0.0, 1.0 / 3.0, 2.0 / 3.0].into_iter().enumerate() {
-                points[3 * j + k] = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            }
+            let straight = straight_cubic(a, corners[(j + 1) % SEGMENTS]);
+            points[3 * j..3 * j + 3].copy_from_slice(&straight[..3]);
         }
         Self { points, color, alpha }
+    }
+
+    /// Whether the path is one its model means to draw ([`VISIBLE_ALPHA`]).
+    pub fn is_visible(&self) -> bool {
+        self.alpha > VISIBLE_ALPHA
     }
 
     /// The control points of segment `j` (0..4): start, two handles, end.

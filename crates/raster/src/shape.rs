@@ -5,9 +5,9 @@
 use std::fmt::Write;
 use std::sync::Arc;
 
+use common::{Bounds, PixelBox};
 use tiny_skia::PathBuilder;
 
-use crate::geometry::Bounds;
 use crate::path::{Path, SEGMENTS};
 
 /// A closed outline filled with one colour, in the unit square of a canvas.
@@ -18,8 +18,8 @@ pub trait Filled {
     fn alpha(&self) -> f32;
     /// Whether every coordinate, the colour and the opacity are finite numbers.
     fn is_finite(&self) -> bool;
-    /// A rectangle containing the whole outline (non-finite if a coordinate is).
-    fn bounds(&self) -> Bounds;
+    /// A rectangle containing the whole outline; `None` if a coordinate is not finite.
+    fn bounds(&self) -> Option<Bounds>;
     /// The outline as tiny-skia geometry in unit-square coordinates, whatever the opacity;
     /// `None` when it is not finite or encloses nothing.
     fn geometry(&self) -> Option<tiny_skia::Path>;
@@ -27,20 +27,10 @@ pub trait Filled {
     /// written by `number`.
     fn svg_data(&self, scale: [f32; 2], number: &dyn Fn(f32) -> String) -> String;
 
-    /// The pixels `[x0, x1) × [y0, y1)` (as `[x0, y0, x1, y1]`) the outline can change on a
-    /// `width × height` canvas: its bounds, widened by a pixel for anti-aliasing, within the
-    /// canvas; `None` when that is empty or not finite.
-    fn pixel_box(&self, width: u32, height: u32) -> Option<[u32; 4]> {
-        let bounds = self.bounds();
-        let scale = |v: f32, size: u32| v * size as f32;
-        let (x0, y0) = (scale(bounds.x0, width).floor() - 1.0, scale(bounds.y0, height).floor() - 1.0);
-        let (x1, y1) = (scale(bounds.x1, width).ceil() + 1.0, scale(bounds.y1, height).ceil() + 1.0);
-        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
-            return None;
-        }
-        let clamp = |v: f32, size: u32| v.clamp(0.0, size as f32) as u32;
-        let [x0, y0, x1, y1] = [clamp(x0, width), clamp(y0, height), clamp(x1, width), clamp(y1, height)];
-        (x0 < x1 && y0 < y1).then_some([x0, y0, x1, y1])
+    /// The pixels the outline can change on a `width × height` canvas ([`Bounds::pixels`]);
+    /// `None` when there are none or a coordinate is not finite.
+    fn pixel_box(&self, width: u32, height: u32) -> Option<PixelBox> {
+        self.bounds()?.pixels(width, height)
     }
 }
 
@@ -57,7 +47,7 @@ impl<T: Filled + ?Sized> Filled for &T {
         (**self).is_finite()
     }
 
-    fn bounds(&self) -> Bounds {
+    fn bounds(&self) -> Option<Bounds> {
         (**self).bounds()
     }
 
@@ -68,19 +58,6 @@ impl<T: Filled + ?Sized> Filled for &T {
     fn svg_data(&self, scale: [f32; 2], number: &dyn Fn(f32) -> String) -> String {
         (**self).svg_data(scale, number)
     }
-}
-
-/// Bounds of a set of points; non-finite if any coordinate is.
-fn bounds_of<'a>(points: impl IntoIterator<Item = &'a [f32; 2]>) -> Bounds {
-    let mut bounds = Bounds { x0: f32::INFINITY, y0: f32::INFINITY, x1: -f32::INFINITY, y1: -f32::INFINITY };
-    for &[x, y] in points {
-        if !(x.is_finite() && y.is_finite()) {
-            return Bounds { x0: f32::NAN, y0: f32::NAN, x1: f32::NAN, y1: f32::NAN };
-        }
-        bounds =
-            Bounds { x0: bounds.x0.min(x), y0: bounds.y0.min(y), x1: bounds.x1.max(x), y1: bounds.y1.max(y) };
-    }
-    bounds
 }
 
 impl Filled for Path {
@@ -96,8 +73,8 @@ impl Filled for Path {
         self.points.iter().flatten().chain(&self.color).chain([&self.alpha]).all(|v| v.is_finite())
     }
 
-    fn bounds(&self) -> Bounds {
-        bounds_of(&self.points)
+    fn bounds(&self) -> Option<Bounds> {
+        Bounds::of_points(&self.points)
     }
 
     fn geometry(&self) -> Option<tiny_skia::Path> {
@@ -163,8 +140,8 @@ impl Filled for Polygon {
         self.corners.iter().flatten().chain(&self.color).chain([&self.alpha]).all(|v| v.is_finite())
     }
 
-    fn bounds(&self) -> Bounds {
-        bounds_of(&self.corners)
+    fn bounds(&self) -> Option<Bounds> {
+        Bounds::of_points(&self.corners)
     }
 
     fn geometry(&self) -> Option<tiny_skia::Path> {
@@ -241,7 +218,7 @@ impl Filled for Shape {
         self.filled().is_finite()
     }
 
-    fn bounds(&self) -> Bounds {
+    fn bounds(&self) -> Option<Bounds> {
         self.filled().bounds()
     }
 
@@ -266,7 +243,7 @@ mod tests {
                 .unwrap();
         let number = |v: f32| format!("{v}");
         assert_eq!(l.svg_data([4.0, 2.0], &number), "M0 0H2V1L1 2H0Z");
-        assert_eq!(l.pixel_box(4, 2), Some([0, 0, 3, 2])); // x up to 2 px, widened by one
+        assert_eq!(l.pixel_box(4, 2), PixelBox::new(0, 0, 3, 2)); // x up to 2 px, widened by one
         let broken = Polygon::new(vec![[0.0, 0.0], [f32::NAN, 0.0], [0.0, 1.0]], [0.0; 3], 1.0).unwrap();
         assert!(broken.geometry().is_none() && broken.pixel_box(4, 2).is_none());
     }

@@ -270,14 +270,7 @@ mod tests {
 
     /// A polygon path through `corners` (pixel units on a `size` canvas), straight sides.
     fn polygon(corners: [[f32; 2]; 4], size: f32) -> Path {
-        let mut points = [[0.0; 2]; POINTS];
-        for j in 0..4 {
-            let (a, b) = (corners[j], corners[(j + 1) % 4]);
-            for (m, t) in [0.0, 1.0 / 3.0, 2.0 / 3.0].into_iter().enumerate() {
-                points[3 * j + m] = [(a[0] + t * (b[0] - a[0])) / size, (a[1] + t * (b[1] - a[1])) / size];
-            }
-        }
-        Path { points, color: [0.0; 3], alpha: 1.0 }
+        Path::quadrilateral(corners.map(|[x, y]| [x / size, y / size]), [0.0; 3], 1.0)
     }
 
     fn coverage_of(path: Path, size: usize) -> Vec<f32> {

@@ -10,7 +10,7 @@ const SIZE: u32 = 64;
 /// PSNR in dB between two equally sized buffers of values in [0, 1].
 fn psnr(a: &[f32], b: &[f32]) -> f64 {
     let mse = a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>() / a.len() as f64;
-    -10.0 * mse.max(1e-12).log10()
+    common::psnr_of_mse(mse)
 }
 
 /// Planar `[3, H, W]` values of an RGB image, to compare with a rendered tensor.

@@ -6,7 +6,8 @@
 
 use std::time::Instant;
 
-use superpixel::{SlicOptions, slic, to_rgb_over_white};
+use common::decode::{LoadOptions, open};
+use superpixel::{SlicOptions, slic};
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -29,8 +30,10 @@ fn main() {
     }
     let path =
         image_path.unwrap_or_else(|| fail("usage: bench IMAGE [--segments N] [--compactness C] [--runs R]"));
-    let decoded = image::open(&path).unwrap_or_else(|err| fail(&format!("{path}: {err}")));
-    let image = to_rgb_over_white(&decoded).unwrap_or_else(|err| fail(&format!("{path}: {err}")));
+    // At the file's own size: SLIC is timed on the pixels it is given.
+    let options_full = LoadOptions { long_side: u32::MAX, ..LoadOptions::default() };
+    let image =
+        open(std::path::Path::new(&path), &options_full).unwrap_or_else(|err| fail(&err.to_string())).image;
     let mut times = Vec::new();
     let mut segments = 0;
     for run in 0..runs + 1 {

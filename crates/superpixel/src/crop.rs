@@ -2,7 +2,9 @@
 
 use image::Rgb32FImage;
 
-use crate::slic::{BoundingBox, Segmentation};
+use common::PixelBox;
+
+use crate::slic::Segmentation;
 
 /// How regions are cut out and resized.
 #[derive(Clone, Debug, PartialEq)]
@@ -41,10 +43,10 @@ pub struct CropTransform {
 
 impl CropTransform {
     /// The transform of a pixel rectangle.
-    pub fn of_box(bbox: BoundingBox) -> Self {
+    pub fn of_box(bbox: PixelBox) -> Self {
         Self {
-            x: bbox.x0 as f32,
-            y: bbox.y0 as f32,
+            x: bbox.x0() as f32,
+            y: bbox.y0() as f32,
             width: bbox.width() as f32,
             height: bbox.height() as f32,
         }
@@ -60,11 +62,6 @@ impl CropTransform {
     pub fn to_image_unit(&self, point: [f32; 2], width: u32, height: u32) -> [f32; 2] {
         let [x, y] = self.to_image(point);
         [x / width as f32, y / height as f32]
-    }
-
-    /// An image pixel position in the crop's unit square (the inverse of [`Self::to_image`]).
-    pub fn from_image(&self, [x, y]: [f32; 2]) -> [f32; 2] {
-        [(x - self.x) / self.width, (y - self.y) / self.height]
     }
 }
 
@@ -185,12 +182,11 @@ mod tests {
 
     #[test]
     fn unit_square_corners_map_to_the_box_corners() {
-        let bbox = BoundingBox { x0: 10, y0: 20, x1: 50, y1: 35 };
+        let bbox = PixelBox::new(10, 20, 50, 35).unwrap();
         let t = CropTransform::of_box(bbox);
         assert_eq!(t.to_image([0.0, 0.0]), [10.0, 20.0]);
         assert_eq!(t.to_image([1.0, 1.0]), [50.0, 35.0]);
         assert_eq!(t.to_image([1.0, 0.0]), [50.0, 20.0]);
-        assert_eq!(t.from_image([30.0, 27.5]), [0.5, 0.5]);
         assert_eq!(t.to_image_unit([1.0, 1.0], 100, 70), [0.5, 0.5]);
     }
 

@@ -7,12 +7,10 @@
 mod color;
 mod connectivity;
 mod crop;
-mod input;
 mod merge;
 mod outline;
 mod slic;
 
 pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
-pub use input::{InputError, to_rgb_over, to_rgb_over_white};
-pub use merge::{SegmentOptions, segment};
-pub use slic::{BoundingBox, Region, Segmentation, SlicError, SlicOptions, slic, worst_first};
+pub use merge::{Hierarchy, SegmentOptions, segment};
+pub use slic::{Region, Segmentation, SlicError, SlicOptions, slic, worst_first};

@@ -34,12 +34,85 @@ impl Segmentation {
         }
         let mut merging = Merging::new(&self, min_compactness);
         let mut alive = count;
-        while alive > max_regions && merging.merge_cheapest() {
+        while alive > max_regions && merging.merge_cheapest().is_some() {
             alive -= 1;
         }
         let labels: Vec<u32> = self.labels.iter().map(|&l| merging.root(l)).collect();
         let (labels, count) = relabel(&labels);
         Self::from_labels(image, labels, count)
+    }
+}
+
+/// A segmentation and the order in which Ward's criterion merges its regions, down to one:
+/// every region count up to the base's is a cut of it ([`Hierarchy::cut`], what
+/// [`Segmentation::limit_regions`] with no compactness floor gives), and the squared error of
+/// each cut's mean-colour fill is known without cutting or drawing it ([`Hierarchy::flat_error`]).
+/// One over-segmentation then serves every budget.
+#[derive(Clone, Debug)]
+pub struct Hierarchy {
+    base: Segmentation,
+    /// The merges in order: (root kept, root merged into it), labels of the base.
+    merges: Vec<(u32, u32)>,
+    /// The squared colour error of the mean-colour fill after each number of merges (index 0:
+    /// the base).
+    errors: Vec<f64>,
+}
+
+impl Hierarchy {
+    /// Merges the regions of `base`, computed on `image`, down to one.
+    ///
+    /// # Panics
+    /// If the image size differs.
+    pub fn new(image: &Rgb32FImage, base: Segmentation) -> Self {
+        assert_eq!(image.dimensions(), (base.width, base.height), "image and segmentation differ in size");
+        let mut merging = Merging::new(&base, 0.0);
+        let mut errors = vec![base.flat_errors(image).iter().sum::<f64>()];
+        let mut merges = Vec::with_capacity(base.regions.len().saturating_sub(1));
+        while let Some((kept, merged, cost)) = merging.merge_cheapest() {
+            merges.push((kept, merged));
+            errors.push(errors[errors.len() - 1] + cost);
+        }
+        Self { base, merges, errors }
+    }
+
+    /// The most regions a cut has: the base's.
+    pub fn most_regions(&self) -> usize {
+        self.base.regions.len()
+    }
+
+    /// The fewest regions a cut has: one per part of the image no merge connects (one, for an
+    /// image in one piece).
+    pub fn fewest_regions(&self) -> usize {
+        self.most_regions() - self.merges.len()
+    }
+
+    /// The squared RGB error (summed over pixels) of filling each region of the cut into
+    /// `regions` ([`Hierarchy::cut`]) with its mean colour.
+    pub fn flat_error(&self, regions: usize) -> f64 {
+        self.errors[self.merges_for(regions)]
+    }
+
+    /// The segmentation into `regions` regions (clamped to the hierarchy's range) that Ward's
+    /// merges reach; `image` is the image the base was computed on.
+    pub fn cut(&self, image: &Rgb32FImage, regions: usize) -> Segmentation {
+        let mut parent: Vec<u32> = (0..self.most_regions() as u32).collect();
+        for &(kept, merged) in &self.merges[..self.merges_for(regions)] {
+            parent[merged as usize] = kept;
+        }
+        let root = |mut label: u32| {
+            while parent[label as usize] != label {
+                label = parent[label as usize];
+            }
+            label
+        };
+        let labels: Vec<u32> = self.base.labels.iter().map(|&l| root(l)).collect();
+        let (labels, count) = relabel(&labels);
+        Segmentation::from_labels(image, labels, count)
+    }
+
+    /// How many merges leave `regions` regions.
+    fn merges_for(&self, regions: usize) -> usize {
+        self.most_regions().saturating_sub(regions.max(1)).min(self.merges.len())
     }
 }
 
@@ -196,19 +269,21 @@ impl Merging {
 
     /// Merges the touching pair of roots that is cheapest to merge among those whose union is
     /// compact enough; when none is left, drops the compactness floor for good, so the count can
-    /// always be reached. False only when no two regions touch.
-    fn merge_cheapest(&mut self) -> bool {
+    /// always be reached. Returns the root kept, the root merged into it and the merge's cost
+    /// (how much the squared error of the mean-colour fill grows); `None` only when no two
+    /// regions touch.
+    fn merge_cheapest(&mut self) -> Option<(u32, u32, f64)> {
         loop {
-            while let Some(Candidate { a, b, versions, .. }) = self.queue.pop() {
+            while let Some(Candidate { cost, a, b, versions }) = self.queue.pop() {
                 let current = (self.version[a as usize], self.version[b as usize]);
                 let roots = self.parent[a as usize] == a && self.parent[b as usize] == b;
                 if roots && versions == current && self.compactness_of_union(a, b) >= self.min_compactness {
                     self.join(a, b);
-                    return true;
+                    return Some((a, b, cost));
                 }
             }
             if self.min_compactness <= 0.0 {
-                return false;
+                return None;
             }
             self.min_compactness = 0.0;
             self.enqueue_all();

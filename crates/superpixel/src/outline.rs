@@ -63,8 +63,8 @@ impl Segmentation {
             return Vec::new();
         }
         let bbox = self.regions[region as usize].bbox;
-        let (x0, y0) = (bbox.x0.saturating_sub(1) as i64, bbox.y0.saturating_sub(1) as i64);
-        let (x1, y1) = ((bbox.x1 + 1).min(self.width) as i64, (bbox.y1 + 1).min(self.height) as i64);
+        let bbox = bbox.padded(1, self.width, self.height);
+        let (x0, y0, x1, y1) = (bbox.x0() as i64, bbox.y0() as i64, bbox.x1() as i64, bbox.y1() as i64);
         let inside = |x: i64, y: i64| x >= x0 && y >= y0 && x < x1 && y < y1 && member(x as u32, y as u32);
         // The first pixel in row-major order lies on the outer boundary: start on its top edge,
         // heading east, the region below (on the right).
@@ -146,6 +146,7 @@ fn without_redundant_points(mut points: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
 
 #[cfg(test)]
 mod tests {
+    use common::signed_area;
     use image::Rgb32FImage;
 
     use super::*;
@@ -167,16 +168,6 @@ mod tests {
             .collect()
     }
 
-    fn area(polygon: &[[f32; 2]]) -> f32 {
-        (0..polygon.len())
-            .map(|i| {
-                let (a, b) = (polygon[i], polygon[(i + 1) % polygon.len()]);
-                a[0] * b[1] - b[0] * a[1]
-            })
-            .sum::<f32>()
-            / 2.0
-    }
-
     #[test]
     fn a_rectangle_has_four_corners() {
         let seg = segmentation(&["0000", "0110", "0110", "0000"]);
@@ -189,16 +180,16 @@ mod tests {
         // An L: area 5 pixels.
         let seg = segmentation(&["100", "100", "111"]);
         let outline = corners(&seg, 1);
-        assert_eq!(area(&outline), 5.0);
+        assert_eq!(signed_area(&outline), 5.0);
         assert_eq!(outline.len(), 6);
         // Region 1 touches a pixel of itself only diagonally? Not possible when 4-connected,
         // but the outline must still close around the 4-connected part it starts from.
         let seg = segmentation(&["1100", "1111", "0011"]);
-        assert_eq!(area(&corners(&seg, 1)), 8.0);
+        assert_eq!(signed_area(&corners(&seg, 1)), 8.0);
         // The region around a hole: the outline is the outer boundary only.
         let seg = segmentation(&["1111", "1001", "1111"]);
-        assert_eq!(area(&corners(&seg, 1)), 12.0);
-        assert_eq!(area(&corners(&seg, 0)), 2.0);
+        assert_eq!(signed_area(&corners(&seg, 1)), 12.0);
+        assert_eq!(signed_area(&corners(&seg, 0)), 2.0);
     }
 
     #[test]
@@ -214,7 +205,10 @@ mod tests {
         );
         assert_eq!(seg.outline(0, nothing_later), [[0.0, 0.0], slope[3], slope[2], slope[1], slope[0]]);
         // Together the two sides cover the image once.
-        assert_eq!(area(&seg.outline(0, nothing_later)) + area(&seg.outline(1, nothing_later)), 16.0);
+        assert_eq!(
+            signed_area(&seg.outline(0, nothing_later)) + signed_area(&seg.outline(1, nothing_later)),
+            16.0
+        );
         // Where three regions meet, the corner stays.
         let seg = segmentation(&["0022", "0011", "1111"]);
         assert!(seg.outline(1, nothing_later).contains(&[2.0, 1.0]));
@@ -255,13 +249,14 @@ mod tests {
         let seg = crate::slic(&image, &crate::SlicOptions { n_segments: 12, ..Default::default() }).unwrap();
         for (r, region) in seg.regions.iter().enumerate() {
             let outline = corners(&seg, r as u32);
-            let enclosed = area(&outline);
+            let enclosed = signed_area(&outline);
             // Clockwise on screen (y down) is a positive shoelace area; holes add to it.
             assert!(enclosed >= region.pixels as f32, "region {r}: {enclosed} < {}", region.pixels);
-            assert!(outline.iter().all(|&[x, y]| x >= region.bbox.x0 as f32
-                && x <= region.bbox.x1 as f32
-                && y >= region.bbox.y0 as f32
-                && y <= region.bbox.y1 as f32));
+            let b = region.bbox;
+            assert!(outline.iter().all(|&[x, y]| x >= b.x0() as f32
+                && x <= b.x1() as f32
+                && y >= b.y0() as f32
+                && y <= b.y1() as f32));
         }
     }
 }

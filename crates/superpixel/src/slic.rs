@@ -1,5 +1,6 @@
 //! SLIC: simple linear iterative clustering in CIELAB × image plane (Achanta et al., TPAMI 2012).
 
+use common::PixelBox;
 use image::Rgb32FImage;
 use rayon::prelude::*;
 
@@ -61,53 +62,13 @@ pub enum SlicError {
     BadOption(&'static str),
 }
 
-/// A half-open pixel rectangle `[x0, x1) × [y0, y1)`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct BoundingBox {
-    /// First column.
-    pub x0: u32,
-    /// First row.
-    pub y0: u32,
-    /// One past the last column.
-    pub x1: u32,
-    /// One past the last row.
-    pub y1: u32,
-}
-
-impl BoundingBox {
-    /// Width in pixels.
-    pub fn width(&self) -> u32 {
-        self.x1 - self.x0
-    }
-
-    /// Height in pixels.
-    pub fn height(&self) -> u32 {
-        self.y1 - self.y0
-    }
-
-    /// The box grown by `padding` pixels on every side, clamped to a `width × height` image.
-    pub fn padded(&self, padding: u32, width: u32, height: u32) -> Self {
-        Self {
-            x0: self.x0.saturating_sub(padding),
-            y0: self.y0.saturating_sub(padding),
-            x1: (self.x1 + padding).min(width),
-            y1: (self.y1 + padding).min(height),
-        }
-    }
-
-    /// Whether the two boxes share at least one pixel.
-    pub fn overlaps(&self, other: &Self) -> bool {
-        self.x0 < other.x1 && other.x0 < self.x1 && self.y0 < other.y1 && other.y0 < self.y1
-    }
-}
-
 /// What a region is: size, extent and mean colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Region {
     /// Number of pixels.
     pub pixels: usize,
     /// Tight bounding box.
-    pub bbox: BoundingBox,
+    pub bbox: PixelBox,
     /// Mean RGB of the region's pixels in the input image.
     pub mean_color: [f32; 3],
 }
@@ -150,26 +111,25 @@ impl Segmentation {
     /// Builds the segmentation of `image` from a label map whose labels are `0..count`, all used.
     pub(crate) fn from_labels(image: &Rgb32FImage, labels: Vec<u32>, count: usize) -> Self {
         let (width, height) = image.dimensions();
-        let empty = Region {
-            pixels: 0,
-            bbox: BoundingBox { x0: width, y0: height, x1: 0, y1: 0 },
-            mean_color: [0.0; 3],
-        };
-        let mut regions = vec![empty; count];
+        // (pixels, box, colour sum) per label; every label is used, so every box gets a pixel.
+        let mut sums: Vec<(usize, Option<PixelBox>, [f32; 3])> = vec![(0, None, [0.0; 3]); count];
         for (index, pixel) in image.pixels().enumerate() {
             let (x, y) = (index as u32 % width, index as u32 / width);
-            let region = &mut regions[labels[index] as usize];
-            region.pixels += 1;
-            let bbox = &mut region.bbox;
-            (bbox.x0, bbox.y0) = (bbox.x0.min(x), bbox.y0.min(y));
-            (bbox.x1, bbox.y1) = (bbox.x1.max(x + 1), bbox.y1.max(y + 1));
+            let (pixels, bbox, sum) = &mut sums[labels[index] as usize];
+            *pixels += 1;
+            *bbox = Some(bbox.map_or(PixelBox::pixel(x, y), |b| b.including(x, y)));
             for c in 0..3 {
-                region.mean_color[c] += pixel.0[c];
+                sum[c] += pixel.0[c];
             }
         }
-        for region in &mut regions {
-            region.mean_color = region.mean_color.map(|sum| sum / region.pixels.max(1) as f32);
-        }
+        let regions = sums
+            .into_iter()
+            .map(|(pixels, bbox, sum)| Region {
+                pixels,
+                bbox: bbox.expect("every label is used"),
+                mean_color: sum.map(|s| s / pixels.max(1) as f32),
+            })
+            .collect();
         Self { width, height, labels, regions }
     }
 }

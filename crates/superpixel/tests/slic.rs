@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use image::{Rgb, Rgb32FImage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use superpixel::{CropOptions, SlicError, SlicOptions, slic};
+use superpixel::{CropOptions, Hierarchy, SlicError, SlicOptions, slic};
 
 /// A flat-colour picture of random convex polygons over a background, plus Gaussian-ish noise,
 /// with its ground-truth label map.
@@ -109,7 +109,7 @@ fn labels_cover_are_contiguous_connected_and_about_as_many_as_asked() {
         }
         // Statistics agree with the label map.
         let r = seg.regions[count / 2];
-        let (x, y) = (r.bbox.x0..r.bbox.x1, r.bbox.y0..r.bbox.y1);
+        let (x, y) = (r.bbox.columns(), r.bbox.rows());
         let label = (count / 2) as u32;
         let inside = y
             .clone()
@@ -232,7 +232,14 @@ fn bad_inputs_are_errors_not_panics() {
     for (w, h) in [(500, 2), (1, 300)] {
         let strip = natural_like(w, h, 5);
         let seg = slic(&strip, &SlicOptions { n_segments: 10, ..Default::default() }).unwrap();
-        assert!(!seg.regions.is_empty());
+        // A valid segmentation: every pixel labelled, every region used. Its grid cannot be
+        // wider than the strip, so thin strips get more regions than asked (50 and 55 of 10
+        // here), but never fewer than two or more than one per 4 pixels.
+        assert_eq!(seg.labels.len(), (w * h) as usize);
+        assert!(seg.labels.iter().all(|&l| (l as usize) < seg.regions.len()));
+        assert!(seg.regions.iter().all(|r| r.pixels > 0));
+        assert_eq!(seg.regions.iter().map(|r| r.pixels).sum::<usize>(), (w * h) as usize);
+        assert!((2..=(w * h / 4) as usize).contains(&seg.regions.len()), "{w}×{h}: {}", seg.regions.len());
     }
 }
 
@@ -250,7 +257,7 @@ fn crop_of_a_region_holds_its_colour_and_mask() {
     let seg = slic(&image, &SlicOptions { n_segments: 9, sigma: 0.0, ..Default::default() }).unwrap();
     let red = seg.label(30, 30);
     let region = seg.regions[red as usize];
-    assert_eq!((region.bbox.x0, region.bbox.y0, region.bbox.x1, region.bbox.y1), (20, 20, 40, 40));
+    assert_eq!(region.bbox, common::PixelBox::new(20, 20, 40, 40).unwrap());
     let crop = seg.crop(&image, red, &CropOptions { size: 24, padding: 2, fill: -1.0 });
     assert_eq!((crop.transform.x, crop.transform.width), (18.0, 24.0));
     for v in 0..24 {
@@ -289,9 +296,29 @@ fn flat_errors_are_what_a_mean_colour_fill_leaves() {
     for (region, (got, want)) in errors.iter().zip(&want).enumerate() {
         assert!((got - want).abs() <= 1e-4, "region {region}: {got} vs {want}");
         let bbox = segmentation.regions[region].bbox;
-        if bbox.x1 <= 32 {
+        if bbox.x1() <= 32 {
             assert!(*got < 1e-6, "a flat region leaves {got}");
         }
     }
     assert!(errors.iter().any(|&e| e > 0.1), "the ramp's regions leave error: {errors:?}");
+}
+
+#[test]
+fn a_hierarchy_cut_is_the_merge_down_to_its_count_and_knows_its_error() {
+    let image = natural_like(72, 48, 9);
+    let base = slic(&image, &SlicOptions { n_segments: 120, ..Default::default() }).unwrap();
+    let hierarchy = Hierarchy::new(&image, base.clone());
+    assert_eq!(hierarchy.most_regions(), base.regions.len());
+    assert_eq!(hierarchy.fewest_regions(), 1, "an image in one piece merges down to one region");
+    let mut last = -1.0;
+    for regions in [base.regions.len(), 90, 40, 7, 1] {
+        let cut = hierarchy.cut(&image, regions);
+        assert_eq!(cut.regions.len(), regions);
+        assert_eq!(cut, base.clone().limit_regions(&image, regions, 0.0), "cut at {regions}");
+        let error: f64 = cut.flat_errors(&image).iter().sum();
+        let known = hierarchy.flat_error(regions);
+        assert!((error - known).abs() <= 1e-3 * error.max(1.0), "{regions}: {known} known, {error} drawn");
+        assert!(known >= last, "fewer regions never fit better: {known} after {last}");
+        last = known;
+    }
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 use raster::Backend;
 
+use crate::data::DataError;
 use crate::trainer::{Summary, TrainError};
 
 /// Flags common to `train-coarse` and `train-refine`.
@@ -23,8 +24,12 @@ pub struct CommonArgs {
     #[arg(long)]
     pub steps: Option<usize>,
     /// Continue from the checkpoint in the output folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "overwrite")]
     pub resume: bool,
+    /// Start afresh where the output folder already holds a checkpoint, replacing it (without
+    /// this or `--resume`, such a folder is refused).
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Prints a training result and turns it into the process's exit code: 0 done, 130
@@ -45,7 +50,9 @@ pub fn finish(result: Result<Summary, Box<dyn std::error::Error>>) -> std::proce
         Err(err) => {
             eprintln!("error: {err}");
             let interrupted =
-                err.downcast_ref::<TrainError>().is_some_and(|e| matches!(e, TrainError::Interrupted { .. }));
+                err.downcast_ref::<TrainError>().is_some_and(|e| {
+                    matches!(e, TrainError::Interrupted { .. } | TrainError::Data(DataError::Interrupted(_)))
+                }) || err.downcast_ref::<DataError>().is_some_and(|e| matches!(e, DataError::Interrupted(_)));
             ExitCode::from(if interrupted { 130 } else { 1 })
         }
     }

@@ -211,13 +211,19 @@ pub struct BoundaryWeight {
     pub decay_per_epoch: f32,
     /// Steps that count as an epoch (the data stream is endless).
     pub epoch_steps: usize,
-    /// Dilation of the mask in pixels.
+    /// Dilation of the mask in pixels ([`dpw::BOUNDARY_DILATION`] by default).
     pub dilation: usize,
 }
 
 impl Default for BoundaryWeight {
     fn default() -> Self {
-        Self { start: 0.045, end: 0.01, decay_per_epoch: 0.005, epoch_steps: 1000, dilation: 2 }
+        Self {
+            start: 0.045,
+            end: 0.01,
+            decay_per_epoch: 0.005,
+            epoch_steps: 1000,
+            dilation: dpw::BOUNDARY_DILATION,
+        }
     }
 }
 

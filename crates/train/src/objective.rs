@@ -327,7 +327,7 @@ impl Split {
         let visible: Vec<Vec<bool>> = alpha
             .chunks(count.max(1))
             .take(batch)
-            .map(|row| row.iter().map(|&a| a > 0.5).collect())
+            .map(|row| row.iter().map(|&a| a > raster::VISIBLE_ALPHA).collect())
             .collect();
         let k = visible
             .iter()

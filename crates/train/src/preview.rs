@@ -17,7 +17,7 @@ pub fn write_preview(
     paths: &PathBatch,
     backgrounds: &[[f32; 3]],
     rows: usize,
-) -> image::ImageResult<()> {
+) -> std::io::Result<()> {
     let scenes = paths.to_scenes();
     let size = crops.first().map_or(1, |crop| crop.size);
     let rows = rows.min(scenes.len()).min(crops.len());
@@ -45,9 +45,7 @@ pub fn write_preview(
             image::imageops::replace(&mut grid, image, (column as u32 * (tile + 1) + 1).into(), top.into());
         }
     }
-    let temporary = path.with_extension("png.tmp");
-    grid.save_with_format(&temporary, image::ImageFormat::Png)?;
-    std::fs::rename(&temporary, path).map_err(image::ImageError::IoError)
+    common::write::write_png(path, &grid)
 }
 
 fn to_u8(value: f32) -> u8 {

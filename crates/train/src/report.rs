@@ -2,10 +2,10 @@
 //! `metrics.jsonl`.
 
 use std::fs::{File, OpenOptions};
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::Path;
 
-use indicatif::{ProgressBar, ProgressStyle};
+use common::progress::Bar;
 use serde_json::{Map, Value};
 
 use crate::validation::Scores;
@@ -30,26 +30,23 @@ pub struct StepRecord {
 
 /// Progress display and the metrics file.
 pub struct Reporter {
-    bar: Option<ProgressBar>,
+    bar: Bar,
     metrics: File,
     total: usize,
 }
 
 impl Reporter {
-    /// Appends to `dir/metrics.jsonl` (a resumed run continues the file) and shows progress
-    /// from `start` to `total` steps.
-    pub fn open(dir: &Path, start: usize, total: usize) -> std::io::Result<Self> {
-        let metrics = OpenOptions::new().create(true).append(true).open(dir.join("metrics.jsonl"))?;
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let bar = ProgressBar::new(total as u64).with_position(start as u64);
-            bar.set_style(
-                ProgressStyle::with_template(
-                    "{bar:30} {pos}/{len} {msg} [{elapsed_precise} < {eta_precise}]",
-                )
-                .expect("valid template"),
-            );
-            bar
-        });
+    /// Opens `dir/metrics.jsonl` — started again when `fresh`, continued otherwise (a resumed
+    /// run) — and shows progress from `start` to `total` steps.
+    pub fn open(dir: &Path, start: usize, total: usize, fresh: bool) -> std::io::Result<Self> {
+        let path = dir.join("metrics.jsonl");
+        let metrics = if fresh {
+            OpenOptions::new().create(true).write(true).truncate(true).open(path)?
+        } else {
+            OpenOptions::new().create(true).append(true).open(path)?
+        };
+        let bar = Bar::new("", total as u64, "steps", true);
+        bar.set_position(start as u64);
         Ok(Self { bar, metrics, total })
     }
 
@@ -76,12 +73,11 @@ impl Reporter {
             record.lr,
             record.samples_per_second
         );
-        match &self.bar {
-            Some(bar) => {
-                bar.set_position(record.step as u64);
-                bar.set_message(message);
-            }
-            None => eprintln!("step {}/{} {message}", record.step, self.total),
+        if self.bar.is_shown() {
+            self.bar.set_position(record.step as u64);
+            self.bar.set_message(message);
+        } else {
+            eprintln!("step {}/{} {message}", record.step, self.total);
         }
         Ok(())
     }
@@ -111,16 +107,11 @@ impl Reporter {
 
     /// Prints a line without breaking the progress bar.
     pub fn say(&self, message: &str) {
-        match &self.bar {
-            Some(bar) => bar.println(message),
-            None => eprintln!("{message}"),
-        }
+        self.bar.println(message);
     }
 
     /// Removes the progress bar.
     pub fn finish(&self) {
-        if let Some(bar) = &self.bar {
-            bar.finish_and_clear();
-        }
+        self.bar.finish();
     }
 }

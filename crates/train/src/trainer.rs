@@ -45,8 +45,8 @@ pub enum TrainError {
     Preview {
         /// The preview file.
         path: PathBuf,
-        /// The encoder's reason.
-        source: image::ImageError,
+        /// The file system's reason.
+        source: std::io::Error,
     },
     /// The optimizer state could not be serialized for a checkpoint.
     #[error("{path}: optimizer state: {source}")]
@@ -64,10 +64,8 @@ pub enum TrainError {
         /// What is missing.
         problem: ResumeProblem,
     },
-    /// A loss term became NaN or infinite; the last good checkpoint is kept.
-    #[error(
-        "loss term `{term}` became {value} at step {step}; stopped, the last good checkpoint is kept at {checkpoint}"
-    )]
+    /// A loss term became NaN or infinite; the last good checkpoint, if any, is kept.
+    #[error("loss term `{term}` became {value} at step {step}; stopped, {}", kept_checkpoint(.checkpoint))]
     NonFinite {
         /// The offending term.
         term: String,
@@ -75,17 +73,40 @@ pub enum TrainError {
         value: f32,
         /// The step it happened at (1-based).
         step: usize,
-        /// The checkpoint left in place.
-        checkpoint: PathBuf,
+        /// The checkpoint left in place, when one was written (or resumed from).
+        checkpoint: Option<PathBuf>,
     },
-    /// Ctrl-C: a checkpoint was saved first.
-    #[error("interrupted at step {step}; saved {checkpoint} (continue with --resume)")]
+    /// Ctrl-C or SIGTERM: a checkpoint was saved first (when there was anything to save).
+    #[error("interrupted at step {step}; {}", saved_checkpoint(.checkpoint))]
     Interrupted {
         /// Steps completed.
         step: usize,
-        /// The checkpoint written.
-        checkpoint: PathBuf,
+        /// The checkpoint written; `None` when the run was stopped before its first step.
+        checkpoint: Option<PathBuf>,
     },
+    /// The output folder already holds this stage's checkpoint and neither `--resume` nor
+    /// `--overwrite` was given: a new run would replace a trained model.
+    #[error(
+        "{}: a checkpoint is already there; continue it with --resume, or start again with --overwrite",
+        .0.display()
+    )]
+    Exists(PathBuf),
+}
+
+/// The end of a [`TrainError::NonFinite`] message.
+fn kept_checkpoint(checkpoint: &Option<PathBuf>) -> String {
+    match checkpoint {
+        Some(path) => format!("the last good checkpoint is kept at {}", path.display()),
+        None => "before any checkpoint was written".to_string(),
+    }
+}
+
+/// The end of a [`TrainError::Interrupted`] message.
+fn saved_checkpoint(checkpoint: &Option<PathBuf>) -> String {
+    match checkpoint {
+        Some(path) => format!("saved {} (continue with --resume)", path.display()),
+        None => "before the first step, nothing to save".to_string(),
+    }
 }
 
 /// Why a checkpoint cannot continue a training run.
@@ -103,6 +124,10 @@ pub enum ResumeProblem {
     /// The optimizer state does not fit this optimizer.
     #[error("optimizer state: {0}")]
     Optimizer(RecordError),
+    /// The checkpoint's model is not the one this run builds (another config, or another
+    /// `--init`).
+    #[error("its model configuration differs from this run's ({0})")]
+    ConfigDiffers(String),
 }
 
 /// The trainer's own state, stored in checkpoints as JSON.
@@ -128,6 +153,9 @@ pub struct Run {
     pub device: Device,
     /// Held-out crops scored (and previewed) every `every` steps and at the end.
     pub validation: Option<(Validation, usize)>,
+    /// Start afresh even where the output folder already holds a checkpoint (replacing it, and
+    /// starting `metrics.jsonl` again).
+    pub overwrite: bool,
 }
 
 /// Where a run starts: a fresh model, or a checkpoint's model, optimizer and step.
@@ -183,13 +211,20 @@ const RECENT_STEPS: f32 = 50.0;
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
-/// Makes Ctrl-C request a checkpoint and a clean stop (installed once per process).
-fn catch_interrupts() {
+/// Makes Ctrl-C, SIGTERM and SIGHUP (what `timeout`, Slurm and `docker stop` send) request a
+/// checkpoint and a clean stop; installed once per process, by the programs before they read
+/// their data, so a stop while images are decoded is heard too.
+pub fn catch_interrupts() {
     static INSTALLED: std::sync::Once = std::sync::Once::new();
     INSTALLED.call_once(|| {
         // Without a handler (another one installed), Ctrl-C simply ends the process.
         let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
     });
+}
+
+/// Whether a stop was requested ([`catch_interrupts`]).
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
 }
 
 /// Trains `start.model` with `objective` for `optim.steps` steps (from where `start` left off),
@@ -210,6 +245,11 @@ pub fn train<O: Objective>(
     catch_interrupts();
     let checkpoint = checkpoint_path::<O>(&run.dir);
     let Start { mut model, model_config, resumed } = start;
+    if resumed.is_none() && !run.overwrite && checkpoint.exists() {
+        return Err(TrainError::Exists(checkpoint));
+    }
+    // The checkpoint a failure leaves in place: the one resumed from, then the latest written.
+    let mut kept = resumed.as_ref().map(|_| checkpoint.clone());
     let mut optimizer = adamw(optim);
     let (first_step, mut seconds, mut recent) = match resumed {
         Some((bytes, state)) => {
@@ -240,17 +280,22 @@ pub fn train<O: Objective>(
     };
 
     let source = Arc::new(DataSource::new(data, &model_config, optim.batch_size, optim.seed)?);
+    if interrupted() {
+        return Err(TrainError::Interrupted { step: first_step, checkpoint: kept });
+    }
     let mut loader = Loader::start(source, first_step as u64, data.workers, data.prefetch);
-    let mut reporter = Reporter::open(&run.dir, first_step, optim.steps).map_err(io(&run.dir))?;
+    // A run that does not resume starts the metrics file again: two step-1 series never mix.
+    let fresh_log = kept.is_none();
+    let mut reporter = Reporter::open(&run.dir, first_step, optim.steps, fresh_log).map_err(io(&run.dir))?;
     if first_step > 0 {
         reporter.say(&format!("resuming from {} at step {first_step}", checkpoint.display()));
     }
     let mut final_loss = f32::NAN;
     for step in first_step..optim.steps {
-        if INTERRUPTED.load(Ordering::SeqCst) {
+        if interrupted() {
             save(&model, &optimizer, step, seconds, &recent)?;
             reporter.finish();
-            return Err(TrainError::Interrupted { step, checkpoint });
+            return Err(TrainError::Interrupted { step, checkpoint: Some(checkpoint) });
         }
         let started = Instant::now();
         let batch = loader.next_batch()?;
@@ -264,7 +309,7 @@ pub fn train<O: Objective>(
             std::iter::once(("loss", total)).chain(values.iter().copied()).find(|(_, v)| !v.is_finite())
         {
             reporter.finish();
-            return Err(TrainError::NonFinite { term: term.into(), value, step: step + 1, checkpoint });
+            return Err(TrainError::NonFinite { term: term.into(), value, step: step + 1, checkpoint: kept });
         }
         for &(name, value) in std::iter::once(&("loss", total)).chain(&values) {
             let average = recent.entry(name.to_string()).or_insert(value);
@@ -299,6 +344,7 @@ pub fn train<O: Objective>(
         }
         if done % optim.checkpoint_every == 0 && done != optim.steps {
             save(&model, &optimizer, done, seconds, &recent)?;
+            kept = Some(checkpoint.clone());
         }
     }
     save(&model, &optimizer, optim.steps.max(first_step), seconds, &recent)?;
@@ -334,8 +380,23 @@ fn validate<O: Objective>(
         .map_err(|source| TrainError::Preview { path: path.clone(), source })
 }
 
+/// The settings in which two model configurations differ, as `key: theirs ≠ ours`.
+fn describe_difference(theirs: &ModelConfig, ours: &ModelConfig) -> String {
+    let (theirs, ours) = (serde_json::to_value(theirs), serde_json::to_value(ours));
+    let (Ok(serde_json::Value::Object(theirs)), Ok(serde_json::Value::Object(ours))) = (theirs, ours) else {
+        return "the configurations differ".to_string();
+    };
+    let differing: Vec<String> = theirs
+        .iter()
+        .filter(|(key, value)| ours.get(*key) != Some(value))
+        .map(|(key, value)| format!("{key}: {value} ≠ {}", ours.get(key).unwrap_or(&serde_json::Value::Null)))
+        .collect();
+    differing.join(", ")
+}
+
 /// Builds a model of `config` (its initialization drawn from `seed` on `device`), or takes the
-/// checkpoint's weights when resuming.
+/// checkpoint's weights when resuming, which must be of the same configuration (the config file's
+/// model, or for E_r the `--init` model's).
 pub fn model_from<M: Module>(
     fresh: impl Fn(&ModelConfig) -> M,
     config: &ModelConfig,
@@ -347,6 +408,11 @@ pub fn model_from<M: Module>(
     match resume {
         None => Ok(Start { model: fresh(config), model_config: config.clone(), resumed: None }),
         Some((checkpoint, optimizer, state)) => {
+            if checkpoint.model_config != *config {
+                let problem =
+                    ResumeProblem::ConfigDiffers(describe_difference(&checkpoint.model_config, config));
+                return Err(TrainError::Resume { path: path.to_path_buf(), problem });
+            }
             let model = checkpoint.apply(fresh(&checkpoint.model_config), path)?;
             Ok(Start { model, model_config: checkpoint.model_config, resumed: Some((optimizer, state)) })
         }

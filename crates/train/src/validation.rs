@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 
 use image::Rgb32FImage;
-use model::{InvalidSetting, ModelConfig, OperatingPoint};
+use model::{InvalidSetting, MIN_REGION_PIXELS, ModelConfig, OperatingPoint};
 use raster::{Path, coverage_exact, paint_exact};
 use serde::{Deserialize, Serialize};
 use superpixel::{RegionCrop, segment};
@@ -16,9 +16,6 @@ use tiny_skia::{Color, Pixmap};
 
 use crate::config::DataConfig;
 use crate::data::{DataError, ImageSet};
-
-/// Regions smaller than this many pixels are not used (as in training).
-const MIN_REGION_PIXELS: usize = 16;
 
 /// The `[validation]` table.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -104,22 +101,25 @@ impl Validation {
         let per_image = config.crops.div_ceil(images.len());
         let mut crops = Vec::with_capacity(config.crops);
         for index in 0..images.len() {
-            let scene: Rgb32FImage = images.get(index);
+            let scene: &Rgb32FImage = images.get(index);
             let t = if images.len() > 1 { index as f64 / (images.len() - 1) as f64 } else { 0.0 };
             let count = (low as f64 * (high as f64 / low as f64).powf(t)).round() as usize;
             let count = count.clamp(1, (scene.width() * scene.height()) as usize);
             let options = OperatingPoint::default().segment_options(data.compactness);
-            let segmentation = segment(&scene, count, &options)
+            let segmentation = segment(scene, count, &options)
                 .map_err(|source| DataError::ValidationSegment { path: folder.clone(), source })?;
             let usable: Vec<u32> = (0..segmentation.regions.len() as u32)
                 .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
                 .collect();
             let step = (usable.len() / per_image.max(1)).max(1);
             for &region in usable.iter().step_by(step).take(per_image) {
-                crops.push(model.region_crop(&segmentation, &scene, region));
+                crops.push(model.region_crop(&segmentation, scene, region));
             }
         }
         crops.truncate(config.crops);
+        if crops.is_empty() {
+            return Err(DataError::NoValidationCrops { path: folder.clone(), min: MIN_REGION_PIXELS });
+        }
         Ok(Some(Self { crops, dilation }))
     }
 
@@ -161,7 +161,7 @@ impl Validation {
             let start = masked_error(crop, &canvas);
             flat += start;
             cells += 3.0 * crop.mask.iter().map(|&m| m as f64).sum::<f64>();
-            let shown: Vec<&Path> = scene.iter().filter(|path| path.alpha > 0.5).collect();
+            let shown: Vec<&Path> = scene.iter().filter(|path| path.is_visible()).collect();
             visible += shown.len();
 
             let mut all = canvas.clone();
@@ -194,7 +194,7 @@ impl Validation {
                 }
             }
         }
-        let psnr = |error: f64| -10.0 * (error / cells.max(1.0)).max(1e-12).log10();
+        let psnr = |error: f64| common::psnr_of_mse(error / cells.max(1.0));
         let crops = self.crops.len().max(1) as f64;
         Scores {
             psnr_flat: psnr(flat),
@@ -264,7 +264,15 @@ mod tests {
         let data = DataConfig { image_size: 64, ..Default::default() };
         let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
         let validation = Validation::build(&config, &data, &model, 1).unwrap().unwrap();
-        assert!(!validation.crops().is_empty());
+        assert_eq!(validation.crops().len(), 2, "one crop per region of the two-region image");
+
+        // Images too small to hold a region of MIN_REGION_PIXELS refuse to make a set.
+        let tiny = dir.join("tiny");
+        std::fs::create_dir_all(&tiny).unwrap();
+        RgbImage::from_pixel(3, 3, Rgb([9, 9, 9])).save(tiny.join("a.png")).unwrap();
+        let config_tiny = ValidationConfig { images: Some(tiny.clone()), ..config.clone() };
+        let err = Validation::build(&config_tiny, &data, &model, 1).err().expect("no crops is an error");
+        assert!(matches!(&err, DataError::NoValidationCrops { path, .. } if *path == tiny), "{err}");
 
         let nothing = vec![Vec::new(); validation.crops().len()];
         let scores = validation.score(&nothing);

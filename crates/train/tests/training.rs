@@ -64,7 +64,7 @@ fn coarse_on(rasterizer: Rasterizer, dir: &Path, steps: usize, resume: bool) -> 
         (&device, config.train.seed),
     )
     .unwrap();
-    let run = Run { dir: dir.to_path_buf(), device, validation: None };
+    let run = Run { dir: dir.to_path_buf(), device, validation: None, overwrite: false };
     let json = serde_json::to_value(&config).unwrap();
     train(&objective, start, &config.train, &config.data, json, &run).unwrap().final_loss
 }
@@ -122,7 +122,7 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
         let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
         let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
         let objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
-        let run = Run { dir: dir.clone(), device, validation: None };
+        let run = Run { dir: dir.clone(), device, validation: None, overwrite: false };
         let json = serde_json::to_value(&config).unwrap();
         train(&objective, start, &config.train, &config.data, json, &run).unwrap();
 
@@ -173,7 +173,8 @@ fn validation_scores_and_previews_are_written() {
     .unwrap();
     let set = Validation::build(&config.validation, &config.data, &start.model_config, 2).unwrap().unwrap();
     assert_eq!(set.crops().len(), 6);
-    let run = Run { dir: dir.clone(), device, validation: Some((set, config.validation.every)) };
+    let run =
+        Run { dir: dir.clone(), device, validation: Some((set, config.validation.every)), overwrite: false };
     let json = serde_json::to_value(&config).unwrap();
     train(&objective, start, &config.train, &config.data, json, &run).unwrap();
 

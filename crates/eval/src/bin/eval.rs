@@ -9,33 +9,43 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::{Context, bail};
-use clap::Parser;
+use clap::{Parser, ValueEnum};
+use common::decode::load;
+use common::write::{create_temporary, write_atomic, write_png};
+use common::{WORKING_SIZES, mse, psnr, ssim};
 use eval::cli::{files_in, finish, load_models};
 use eval::lpips::Lpips;
 use eval::peers::{
-    PeerError, available, count_shapes, fallback_mosaic, mean_color_superpixels, potrace_colors, render_svg,
-    vtracer,
+    PeerError, available, count_shapes, mean_color_superpixels, potrace_colors, render_svg, vtracer,
 };
 use eval::spill::spill;
 use image::{Rgb32FImage, RgbImage};
-use infer::decode::load;
-use infer::finetune::{Budget, FinetuneOptions, finetune};
-use infer::metrics::{mse, psnr, ssim};
-use infer::pipeline::{AutoBudget, MAX_PATHS, Options, auto_budget, operating_point, vectorize};
-use infer::scene::{Origin, Scene};
-use infer::write::{write_atomic, write_png};
-use raster::{Backend, to_svg};
+use infer::finetune::{Budget as FinetuneBudget, FinetuneOptions};
+use infer::scene::{Origin, StageCounts};
+use infer::{AutoBudget, Job, MAX_PATHS, Outcome, PathBudget, run};
+use raster::Backend;
 
-/// Peers `--peers` accepts.
-const PEERS: [&str; 4] = ["vtracer", "potrace", "slic", "fallback"];
+/// What `--peers` can add beside SuperSVG.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Peer {
+    /// vtracer (colour, stacked, spline), when installed.
+    Vtracer,
+    /// potrace on 16 colour layers, when installed.
+    Potrace,
+    /// SLIC regions filled with their mean colour, pixel-exact.
+    Slic,
+    /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1` draws it.
+    Fallback,
+}
+
 /// Dilation (pixels) of a region's mask before its paths' spill is measured: the margin the
-/// training's boundary loss allows.
-const SPILL_DILATION: u32 = 2;
+/// training's boundary loss allows (`dpw::BOUNDARY_DILATION`).
+const SPILL_DILATION: u32 = dpw::BOUNDARY_DILATION as u32;
 
 /// Evaluate SuperSVG and other vectorizers on a folder of images.
 #[derive(Parser, Debug)]
@@ -52,6 +62,10 @@ struct Args {
     /// The markdown report to write; the contact sheet goes next to it as PNG.
     #[arg(long)]
     out: PathBuf,
+    /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
+    /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`): the files `infer` writes with the same settings.
+    #[arg(long)]
+    svgs: Option<PathBuf>,
     /// Coarse-model checkpoint (default: the bundled one).
     #[arg(long)]
     coarse: Option<PathBuf>,
@@ -64,13 +78,89 @@ struct Args {
     /// Long side of the working resolution.
     #[arg(long, default_value_t = 512, allow_hyphen_values = true)]
     size: u32,
-    /// Peers: vtracer and potrace (when installed), slic (pixel-exact superpixels in their mean
-    /// colour), fallback (SuperSVG's fallback drawing alone); comma separated, empty for none.
+    /// Peers, comma separated; empty for none.
     #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic,fallback")]
-    peers: Vec<String>,
+    peers: Vec<PeerArg>,
     /// Evaluate only the first N images.
     #[arg(long)]
     limit: Option<usize>,
+}
+
+/// One entry of `--peers`: a peer, or nothing (`--peers ''`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PeerArg(Option<Peer>);
+
+impl std::str::FromStr for PeerArg {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        if text.is_empty() {
+            return Ok(Self(None));
+        }
+        Peer::from_str(text, true).map(|peer| Self(Some(peer))).map_err(|_| {
+            let known: Vec<String> = Peer::value_variants()
+                .iter()
+                .filter_map(|p| p.to_possible_value())
+                .map(|v| v.get_name().into())
+                .collect();
+            format!("unknown peer `{text}` (known: {})", known.join(", "))
+        })
+    }
+}
+
+/// A way of drawing an image that the report has rows for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Method {
+    /// SuperSVG-B at the budget.
+    OursB,
+    /// SuperSVG-F: B fine-tuned.
+    OursF,
+    /// SuperSVG-B with `--paths auto`.
+    OursAuto,
+    /// The fallback drawing alone.
+    Fallback,
+    /// vtracer with one knob searched to the budget.
+    Vtracer,
+    /// vtracer's default settings.
+    VtracerDefault,
+    /// potrace on colour layers.
+    Potrace,
+    /// The SLIC mosaic.
+    Slic,
+}
+
+impl Method {
+    /// The row's name in the report.
+    fn name(self) -> &'static str {
+        match self {
+            Method::OursB => "SuperSVG-B (ours)",
+            Method::OursF => "SuperSVG-F (ours)",
+            Method::OursAuto => "SuperSVG-B (ours), --paths auto",
+            Method::Fallback => "fallback alone (traced regions, mean colour)",
+            Method::Vtracer => "vtracer",
+            Method::VtracerDefault => "vtracer (default settings)",
+            Method::Potrace => "potrace, 16 colour layers",
+            Method::Slic => "SLIC regions, mean colour",
+        }
+    }
+}
+
+/// The budget a table is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Table {
+    /// Every method at this many paths (or shapes).
+    Paths(usize),
+    /// Each method chooses: `--paths auto`, vtracer's defaults.
+    Own,
+}
+
+impl Table {
+    fn title(self) -> String {
+        match self {
+            Table::Paths(paths) => format!("{paths} paths"),
+            Table::Own => "each method's own budget".to_string(),
+        }
+    }
 }
 
 /// One method's result on one image at one budget.
@@ -98,23 +188,25 @@ struct Drawn {
 
 /// What a SuperSVG drawing is made of.
 struct Anatomy {
-    stages: Vec<(Origin, usize)>,
+    stages: StageCounts,
     spill: f64,
 }
 
 fn main() -> ExitCode {
-    finish(run(Args::parse()))
+    finish(run_eval(Args::parse()))
 }
 
-fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(bad) = args.peers.iter().find(|p| !p.is_empty() && !PEERS.contains(&p.as_str())) {
-        bail!("--peers: unknown peer `{bad}` (known: {})", PEERS.join(", "));
-    }
+fn run_eval(args: Args) -> anyhow::Result<()> {
     if let Some(bad) = args.paths.iter().find(|&&p| !(2..=MAX_PATHS).contains(&p)) {
         bail!("--paths: {bad} is out of range (2, the background and one region, to {MAX_PATHS})");
     }
-    if !(16..=8192).contains(&args.size) {
-        bail!("--size: {} is out of range (16 to 8192 pixels)", args.size);
+    if !WORKING_SIZES.contains(&args.size) {
+        bail!(
+            "--size: {} is out of range ({} to {} pixels)",
+            args.size,
+            WORKING_SIZES.start(),
+            WORKING_SIZES.end()
+        );
     }
     if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         bail!("--finetune-secs: {seconds} is not a number of seconds");
@@ -124,17 +216,25 @@ fn run(args: Args) -> anyhow::Result<()> {
     if images.is_empty() {
         bail!("{}: no images", args.dir.display());
     }
+    if let Some(folder) = &args.svgs {
+        std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
+    }
     let device = args.backend.device()?;
     let (models, _, _) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let scratch = std::env::temp_dir().join(format!("supersvg-eval-{}", std::process::id()));
     std::fs::create_dir_all(&scratch)?;
 
-    let wanted = |peer: &str| args.peers.iter().any(|p| p == peer);
-    let use_vtracer = wanted("vtracer") && available("vtracer");
-    let use_potrace = wanted("potrace") && available("potrace");
+    let wanted = |peer: Peer| args.peers.contains(&PeerArg(Some(peer)));
+    let use_vtracer = wanted(Peer::Vtracer) && available("vtracer");
+    let use_potrace = wanted(Peer::Potrace) && available("potrace");
     let mut notes = Vec::new();
     for (peer, used) in [("vtracer", use_vtracer), ("potrace", use_potrace)] {
-        if wanted(peer) && !used {
+        if args
+            .peers
+            .iter()
+            .any(|p| p.0.and_then(|p| p.to_possible_value()).is_some_and(|v| v.get_name() == peer))
+            && !used
+        {
             notes.push(format!("{peer} is not installed: its rows are missing."));
         }
     }
@@ -146,9 +246,9 @@ fn run(args: Args) -> anyhow::Result<()> {
         }
     };
 
-    // results[(budget, method)] = one row per image
-    let mut results: BTreeMap<(usize, String), Vec<Row>> = BTreeMap::new();
-    let mut sheet_rows: Vec<Vec<(String, Rgb32FImage)>> = Vec::new();
+    let mut results: BTreeMap<(Table, Method), Vec<Row>> = BTreeMap::new();
+    // Per image: the input (no method), then each method's drawing at the first budget.
+    let mut sheet_rows: Vec<Vec<(Option<Method>, Rgb32FImage)>> = Vec::new();
     let mut evaluated = 0;
     for (index, path) in images.iter().enumerate() {
         let loaded = match load(path, args.size) {
@@ -162,15 +262,18 @@ fn run(args: Args) -> anyhow::Result<()> {
         let image = &loaded.image;
         let (width, height) = image.dimensions();
         let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-        let png = scratch.join("input.png");
+        let stem = path.file_stem().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let (png_file, png) = create_temporary(&scratch, "input")?;
+        drop(png_file);
         write_png(&png, &to_rgb8(image))?;
-        let mut tiles = vec![("input".to_string(), image.clone())];
-        let mut record = |budget: usize,
-                          method: &str,
+        let mut tiles = vec![(None, image.clone())];
+        let first = Table::Paths(args.paths[0]);
+        let mut record = |table: Table,
+                          method: Method,
                           drawn: Result<Drawn, PeerError>,
                           seconds: f64,
                           anatomy: Option<Anatomy>,
-                          tiles: &mut Vec<(String, Rgb32FImage)>| {
+                          tiles: &mut Vec<(Option<Method>, Rgb32FImage)>| {
             match drawn {
                 Ok(Drawn { image: drawn, shapes, bytes }) => {
                     let row = Row {
@@ -179,17 +282,17 @@ fn run(args: Args) -> anyhow::Result<()> {
                         bytes,
                         mse: mse(&drawn, image),
                         psnr: psnr(&drawn, image),
-                        ssim: ssim(&drawn, image).unwrap_or(f64::NAN),
+                        ssim: ssim(&drawn, image),
                         lpips: lpips.as_ref().map(|net| net.distance(&drawn, image)),
                         seconds,
                         anatomy,
                     };
-                    if budget == args.paths[0] {
-                        tiles.push((method.to_string(), drawn));
+                    if table == first {
+                        tiles.push((Some(method), drawn));
                     }
-                    results.entry((budget, method.to_string())).or_default().push(row);
+                    results.entry((table, method)).or_default().push(row);
                 }
-                Err(err) => eprintln!("{}: {method} at {budget}: {err}", path.display()),
+                Err(err) => eprintln!("{}: {} at {}: {err}", path.display(), method.name(), table.title()),
             }
         };
         let rendered = |svg: &str| {
@@ -199,71 +302,82 @@ fn run(args: Args) -> anyhow::Result<()> {
                 bytes: Some(svg.len()),
             })
         };
-        let drawing = |scene: &Scene| -> Result<Drawn, PeerError> {
-            let svg = to_svg(&scene.scene(), width, height, None)?;
-            rendered(&svg)
-        };
-        let anatomy = |scene: &Scene| Anatomy {
-            stages: scene.counts(),
-            spill: spill(scene.paths(), scene.segmentation(), SPILL_DILATION),
+        // Ours: the SVG `infer` writes, rendered by resvg like every peer's, and kept if asked.
+        let ours = |table: Table, method: Method, outcome: &Outcome| {
+            if let Some(folder) = &args.svgs {
+                let suffix = match (method, table) {
+                    (Method::OursAuto, _) => "auto".to_string(),
+                    (Method::OursF, Table::Paths(n)) => format!("f-{n}"),
+                    (Method::Fallback, Table::Paths(n)) => format!("fallback-{n}"),
+                    (_, Table::Paths(n)) => format!("b-{n}"),
+                    (_, Table::Own) => "own".to_string(),
+                };
+                let file = folder.join(format!("{stem}-{suffix}.svg"));
+                if let Err(err) = write_atomic(&file, outcome.svg.as_bytes()) {
+                    eprintln!("{}: {err}", file.display());
+                }
+            }
+            let anatomy = Anatomy {
+                stages: outcome.report.paths_by_stage,
+                spill: spill(outcome.scene.paths(), outcome.scene.segmentation(), SPILL_DILATION),
+            };
+            (rendered(&outcome.svg), outcome.report.seconds.total, Some(anatomy))
         };
         for &budget in &args.paths {
-            let started = Instant::now();
-            let options = Options { paths: budget, ..Options::default() };
-            let mut result = vectorize(&models, image, &options, &device)?;
-            let seconds = started.elapsed().as_secs_f64();
-            let parts = Some(anatomy(&result.scene));
-            record(budget, "SuperSVG-B (ours)", drawing(&result.scene), seconds, parts, &mut tiles);
+            let table = Table::Paths(budget);
+            let job = Job { paths: PathBudget::Count(budget), ..Job::default() };
+            let outcome = run(&models, &loaded, &job, &device)?;
+            let (drawn, seconds, anatomy) = ours(table, Method::OursB, &outcome);
+            record(table, Method::OursB, drawn, seconds, anatomy, &mut tiles);
             if let Some(limit) = args.finetune_secs {
-                let tuning = Instant::now();
-                let options_f =
-                    FinetuneOptions { budget: Budget::Seconds(limit), ..FinetuneOptions::default() };
-                finetune(&mut result.scene, &options_f);
-                let total = seconds + tuning.elapsed().as_secs_f64();
-                let parts = Some(anatomy(&result.scene));
-                record(budget, "SuperSVG-F (ours)", drawing(&result.scene), total, parts, &mut tiles);
+                let options =
+                    FinetuneOptions { budget: FinetuneBudget::Seconds(limit), ..FinetuneOptions::default() };
+                let tuned = outcome.finetuned(&loaded, &job, &options, &mut |_| ControlFlow::Continue(()))?;
+                let (drawn, seconds, anatomy) = ours(table, Method::OursF, &tuned);
+                record(table, Method::OursF, drawn, seconds, anatomy, &mut tiles);
             }
-            if wanted("fallback") {
-                let drawn = fallback_mosaic(image, budget).and_then(|(paths, seconds)| {
-                    let svg = to_svg(&paths, width, height, None)?;
-                    Ok((rendered(&svg)?, seconds))
-                });
-                let seconds = drawn.as_ref().map_or(0.0, |(_, s)| *s);
-                let name = "fallback alone (traced regions, mean colour)";
-                record(budget, name, drawn.map(|(d, _)| d), seconds, None, &mut tiles);
+            if wanted(Peer::Fallback) {
+                let alone = Job { regions: Some(budget - 1), ..job };
+                let outcome = run(&models, &loaded, &alone, &device)?;
+                let (drawn, seconds, anatomy) = ours(table, Method::Fallback, &outcome);
+                record(table, Method::Fallback, drawn, seconds, anatomy, &mut tiles);
             }
             if use_vtracer {
                 let traced = vtracer(&png, Some(budget), &scratch);
                 let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
-                record(budget, "vtracer", traced.and_then(|t| rendered(&t.svg)), seconds, None, &mut tiles);
+                record(
+                    table,
+                    Method::Vtracer,
+                    traced.and_then(|t| rendered(&t.svg)),
+                    seconds,
+                    None,
+                    &mut tiles,
+                );
             }
             if use_potrace {
                 let traced = potrace_colors(image, 16, Some(budget), &scratch);
                 let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
                 let drawn = traced.and_then(|t| rendered(&t.svg));
-                record(budget, "potrace, 16 colour layers", drawn, seconds, None, &mut tiles);
+                record(table, Method::Potrace, drawn, seconds, None, &mut tiles);
             }
-            if wanted("slic") {
-                let (filled, regions, seconds) = mean_color_superpixels(image, budget);
-                let drawn = Drawn { image: filled, shapes: regions, bytes: None };
-                record(budget, "SLIC regions, mean colour", Ok(drawn), seconds, None, &mut tiles);
+            if wanted(Peer::Slic) {
+                let mosaic = mean_color_superpixels(image, budget);
+                let seconds = mosaic.as_ref().map_or(0.0, |m| m.seconds);
+                let drawn = mosaic.map(|m| Drawn { image: m.image, shapes: m.regions, bytes: None });
+                record(table, Method::Slic, drawn, seconds, None, &mut tiles);
             }
         }
-        // Each method's own budget: `--paths auto` for SuperSVG-B, vtracer's defaults.
-        let started = Instant::now();
-        let defaults = Options::default();
-        let point = operating_point(&models, &defaults);
-        let paths = auto_budget(image, &point, defaults.compactness, &AutoBudget::default())?;
-        let result = vectorize(&models, image, &Options { paths, ..defaults }, &device)?;
-        let seconds = started.elapsed().as_secs_f64();
-        let parts = Some(anatomy(&result.scene));
-        record(0, "SuperSVG-B (ours), --paths auto", drawing(&result.scene), seconds, parts, &mut tiles);
+        let job = Job { paths: PathBudget::Auto(AutoBudget::default()), ..Job::default() };
+        let outcome = run(&models, &loaded, &job, &device)?;
+        let (drawn, seconds, anatomy) = ours(Table::Own, Method::OursAuto, &outcome);
+        record(Table::Own, Method::OursAuto, drawn, seconds, anatomy, &mut tiles);
         if use_vtracer {
             let traced = vtracer(&png, None, &scratch);
             let seconds = traced.as_ref().map_or(0.0, |t| t.seconds);
             let drawn = traced.and_then(|t| rendered(&t.svg));
-            record(0, "vtracer (default settings)", drawn, seconds, None, &mut tiles);
+            record(Table::Own, Method::VtracerDefault, drawn, seconds, None, &mut tiles);
         }
+        let _ = std::fs::remove_file(&png);
         if sheet_rows.len() < 8 {
             sheet_rows.push(tiles);
         }
@@ -277,8 +391,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     let sheet_path = args.out.with_extension("png");
     write_png(&sheet_path, &contact_sheet(&sheet_rows, 160))
         .with_context(|| sheet_path.display().to_string())?;
-    let columns: Vec<String> =
-        sheet_rows.first().map(|row| row.iter().map(|(name, _)| name.clone()).collect()).unwrap_or_default();
+    let columns: Vec<&str> = sheet_rows
+        .first()
+        .map(|row| row.iter().map(|(method, _)| method.map_or("input", Method::name)).collect())
+        .unwrap_or_default();
     let report = report(&args, evaluated, &results, &notes, (&sheet_path, &columns));
     write_atomic(&args.out, report.as_bytes()).with_context(|| args.out.display().to_string())?;
     eprintln!("wrote {} and {}", args.out.display(), sheet_path.display());
@@ -294,9 +410,9 @@ fn to_rgb8(image: &Rgb32FImage) -> RgbImage {
 fn report(
     args: &Args,
     images: usize,
-    results: &BTreeMap<(usize, String), Vec<Row>>,
+    results: &BTreeMap<(Table, Method), Vec<Row>>,
     notes: &[String],
-    (sheet, columns): (&Path, &[String]),
+    (sheet, columns): (&Path, &[&str]),
 ) -> String {
     let mut text = format!(
         "# Evaluation on `{}`\n\n{images} images, working resolution {} px (long side). Every SVG rendered \
@@ -306,20 +422,16 @@ fn report(
         args.size,
         std::env::args().collect::<Vec<_>>().join(" ")
     );
-    let budgets: Vec<usize> = {
-        let mut b: Vec<usize> = results.keys().map(|(budget, _)| *budget).collect();
-        b.dedup();
-        b
-    };
-    for budget in budgets {
-        let title =
-            if budget == 0 { "Each method's own budget".to_string() } else { format!("{budget} paths") };
+    for table in tables(results) {
+        let title = table.title();
+        let title = title[..1].to_uppercase() + &title[1..];
         let _ = writeln!(
             text,
             "## {title}\n\n| method | shapes | SVG KB | PSNR (dB) | SSIM | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
         );
-        let rows_here = results.iter().filter(|((b, _), _)| *b == budget);
+        let rows_here = results.iter().filter(|((t, _), _)| *t == table);
         for ((_, method), rows) in rows_here.clone() {
+            let method = method.name();
             let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
             let kilobytes = if rows.iter().all(|r| r.bytes.is_some()) {
                 format!("{:.1}", mean(&|r| r.bytes.unwrap_or(0) as f64) / 1000.0)
@@ -356,15 +468,13 @@ fn report(
                 let anatomy = || rows.iter().filter_map(|r| r.anatomy.as_ref());
                 let per_stage: Vec<String> = Origin::ALL
                     .iter()
-                    .map(|origin| {
-                        let count: usize = anatomy()
-                            .map(|a| a.stages.iter().find(|(o, _)| o == origin).map_or(0, |(_, n)| *n))
-                            .sum();
+                    .map(|&origin| {
+                        let count: usize = anatomy().map(|a| a.stages.of(origin)).sum();
                         format!("{:.1}", count as f64 / rows.len() as f64)
                     })
                     .collect();
                 let spill = anatomy().map(|a| a.spill).sum::<f64>() / rows.len() as f64;
-                let _ = writeln!(text, "| {method} | {} | {spill:.3} |", per_stage.join(" | "));
+                let _ = writeln!(text, "| {} | {} | {spill:.3} |", method.name(), per_stage.join(" | "));
             }
         }
         text.push('\n');
@@ -383,22 +493,26 @@ fn report(
     text
 }
 
+/// The tables the results fill, in order.
+fn tables(results: &BTreeMap<(Table, Method), Vec<Row>>) -> Vec<Table> {
+    let mut tables: Vec<Table> = results.keys().map(|(table, _)| *table).collect();
+    tables.dedup();
+    tables
+}
+
 /// Each image's PSNR / LPIPS per method, one table per budget: where a mean hides one image
 /// that loses.
-fn per_image(results: &BTreeMap<(usize, String), Vec<Row>>) -> String {
+fn per_image(results: &BTreeMap<(Table, Method), Vec<Row>>) -> String {
     let mut text = String::from("## Per image (PSNR dB / LPIPS)\n");
-    let mut budgets: Vec<usize> = results.keys().map(|(budget, _)| *budget).collect();
-    budgets.dedup();
-    for budget in budgets {
-        let methods: Vec<(&String, &Vec<Row>)> =
-            results.iter().filter(|((b, _), _)| *b == budget).map(|((_, m), rows)| (m, rows)).collect();
+    for table in tables(results) {
+        let methods: Vec<(Method, &Vec<Row>)> =
+            results.iter().filter(|((t, _), _)| *t == table).map(|((_, m), rows)| (*m, rows)).collect();
         let mut images: Vec<&str> =
             methods.iter().flat_map(|(_, rows)| rows.iter().map(|r| r.image.as_str())).collect();
         images.sort_unstable();
         images.dedup();
-        let title =
-            if budget == 0 { "each method's own budget".to_string() } else { format!("{budget} paths") };
-        let names: Vec<&str> = methods.iter().map(|(m, _)| m.as_str()).collect();
+        let title = table.title();
+        let names: Vec<&str> = methods.iter().map(|(m, _)| m.name()).collect();
         let _ = writeln!(
             text,
             "\n{title}:\n\n| image | {} |\n| --- |{}",
@@ -424,7 +538,7 @@ fn per_image(results: &BTreeMap<(usize, String), Vec<Row>>) -> String {
 }
 
 /// Rows of tiles (input, then each method) scaled to `tile` px, with their names.
-fn contact_sheet(rows: &[Vec<(String, Rgb32FImage)>], tile: u32) -> RgbImage {
+fn contact_sheet(rows: &[Vec<(Option<Method>, Rgb32FImage)>], tile: u32) -> RgbImage {
     let columns = rows.iter().map(Vec::len).max().unwrap_or(1) as u32;
     let mut sheet = RgbImage::from_pixel(
         columns * (tile + 4) + 4,

@@ -4,22 +4,21 @@
 //! `tune DIR --paths 500,2000 --coarse-share 0,0.1 --refine-share 0,0.25 --oversegment 1,3
 //!       --out docs/operating-point.md [--write models/coarse.ckpt]`
 //!
-//! Scores are the PSNR of the exact rendering at the working resolution, averaged over images
-//! and then over budgets; the best point is the one with the highest average.
+//! Each point draws every image through `infer::run`, as `infer` would with that point. Scores are
+//! the PSNR of the drawing at the working resolution (the job's report), averaged over images and
+//! then over budgets; the best point is the one with the highest average.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::{Context, anyhow, bail};
 use clap::Parser;
+use common::decode::load;
+use common::write::write_atomic;
 use eval::cli::{files_in, finish, load_models};
-use infer::decode::load;
-use infer::metrics::psnr;
-use infer::pipeline::{Options, vectorize};
-use infer::scene::Origin;
-use infer::write::write_atomic;
+use infer::scene::{Origin, StageCounts};
+use infer::{Job, PathBudget, run};
 use model::{Checkpoint, OperatingPoint};
 use raster::Backend;
 
@@ -64,19 +63,53 @@ struct Args {
     backend: Backend,
 }
 
+/// Mean paths per stage over images.
+#[derive(Clone, Copy, Default)]
+struct MeanStages {
+    background: f64,
+    fallback: f64,
+    coarse: f64,
+    refine: f64,
+}
+
+impl MeanStages {
+    /// Adds one image's counts, weighted `weight` (one over the number of images).
+    fn add(&mut self, counts: StageCounts, weight: f64) {
+        self.background += counts.background as f64 * weight;
+        self.fallback += counts.fallback as f64 * weight;
+        self.coarse += counts.coarse as f64 * weight;
+        self.refine += counts.refine as f64 * weight;
+    }
+
+    /// `background / fallback / coarse / refine`, rounded.
+    fn cell(&self) -> String {
+        let order = Origin::ALL.map(|origin| match origin {
+            Origin::Background => self.background,
+            Origin::Fallback => self.fallback,
+            Origin::Coarse => self.coarse,
+            Origin::Refine => self.refine,
+        });
+        order.map(|v| format!("{v:.0}")).join(" / ")
+    }
+}
+
 /// One grid point's results: mean PSNR, mean seconds and mean paths per stage, per budget.
 struct Measured {
     point: OperatingPoint,
     psnr: Vec<f64>,
     seconds: Vec<f64>,
-    stages: Vec<[f64; 4]>,
+    stages: Vec<MeanStages>,
 }
 
 fn main() -> ExitCode {
-    finish(run(Args::parse()))
+    finish(run_tune(Args::parse()))
 }
 
-fn run(args: Args) -> anyhow::Result<()> {
+fn run_tune(args: Args) -> anyhow::Result<()> {
+    if !common::WORKING_SIZES.contains(&args.size) {
+        let sizes = common::WORKING_SIZES;
+        bail!("--size: {} is out of range ({} to {} pixels)", args.size, sizes.start(), sizes.end());
+    }
     let device = args.backend.device()?;
     let (models, coarse, refine) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let mut points = Vec::new();
@@ -91,8 +124,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
-    let images: Vec<_> =
-        files_in(&args.dir)?.iter().filter_map(|path| load(path, args.size).ok().map(|l| l.image)).collect();
+    let images: Vec<_> = files_in(&args.dir)?.iter().filter_map(|path| load(path, args.size).ok()).collect();
     if images.is_empty() {
         bail!("{}: no readable images", args.dir.display());
     }
@@ -104,19 +136,17 @@ fn run(args: Args) -> anyhow::Result<()> {
             point,
             psnr: vec![0.0; budgets],
             seconds: vec![0.0; budgets],
-            stages: vec![[0.0; 4]; budgets],
+            stages: vec![MeanStages::default(); budgets],
         };
+        let weight = 1.0 / images.len() as f64;
         for (b, &paths) in args.paths.iter().enumerate() {
             for image in &images {
-                let started = Instant::now();
-                let options = Options { paths, operating_point: Some(point), ..Options::default() };
-                let drawn = vectorize(&models, image, &options, &device)?;
-                result.seconds[b] += started.elapsed().as_secs_f64() / images.len() as f64;
-                result.psnr[b] += psnr(&drawn.scene.canvas_image(), image) / images.len() as f64;
-                for (origin, count) in drawn.scene.counts() {
-                    let slot = Origin::ALL.iter().position(|o| *o == origin).expect("every origin is listed");
-                    result.stages[b][slot] += count as f64 / images.len() as f64;
-                }
+                let job =
+                    Job { paths: PathBudget::Count(paths), operating_point: Some(point), ..Job::default() };
+                let report = run(&models, image, &job, &device)?.report;
+                result.seconds[b] += report.seconds.total * weight;
+                result.psnr[b] += report.psnr * weight;
+                result.stages[b].add(report.paths_by_stage, weight);
             }
         }
         eprintln!("[{}/{}] {point:?}: {:?}", index + 1, points.len(), result.psnr);
@@ -152,8 +182,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             p.coarse_share, p.refine_share, p.oversegment, p.min_compactness
         );
         for b in 0..args.paths.len() {
-            let stages: Vec<String> = m.stages[b].iter().map(|v| format!("{v:.0}")).collect();
-            let _ = write!(text, " {:.2} | {} | {:.2} |", m.psnr[b], stages.join(" / "), m.seconds[b]);
+            let _ = write!(text, " {:.2} | {} | {:.2} |", m.psnr[b], m.stages[b].cell(), m.seconds[b]);
         }
         let marker = if std::ptr::eq(m, best) { " **best**" } else { "" };
         let _ = writeln!(text, " {:.2}{marker} |", mean(m));

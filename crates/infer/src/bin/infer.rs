@@ -3,24 +3,24 @@
 //! `infer photo.jpg -o photo.svg [--paths 500] [--preview photo.png] [--metrics photo.json]`
 //! `infer a.png b.jpg … -o out/` (a folder for several inputs), `infer - -o - < in.png > out.svg`
 
-use std::io::{IsTerminal, Read, Write};
+use std::io::{Read, Write};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, anyhow, bail};
 use clap::Parser;
+use common::decode::{LoadOptions, decode, open};
+use common::progress::Bar;
+use common::write::{folder_of, probe_folder, write_atomic, write_png};
+use common::{Loaded, WORKING_SIZES};
 use image::{Rgb32FImage, RgbImage};
-use indicatif::ProgressBar;
-use infer::decode::{LoadOptions, load_with};
-use infer::finetune::{Budget, FinetuneOptions, Progress, finetune_with_progress};
-use infer::metrics::{mse, psnr, ssim};
-use infer::models::{Models, bundled};
-use infer::pipeline::{
-    AutoBudget, MAX_PATHS, MIN_REGION_PIXELS, Options, auto_budget, max_regions, operating_point, vectorize,
-};
-use infer::write::{folder_of, write_atomic, write_png};
-use raster::{Backend, MAX_DECIMALS, SvgOptions, render_exact, to_svg_with};
+use infer::finetune::{Budget, FinetuneOptions, Progress};
+use infer::models::bundled;
+use infer::{AutoBudget, Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
+use raster::{Backend, MAX_DECIMALS, SvgOptions};
+use serde::Serialize;
 
 /// Vectorize images into SVG with SuperSVG.
 ///
@@ -56,8 +56,10 @@ struct Args {
     /// Compute backend: flex, ndarray or wgpu.
     #[arg(long, default_value = "flex")]
     backend: Backend,
-    /// Long side of the working resolution in pixels (the SVG keeps the input's size).
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=MAX_SIZE as i64))]
+    /// Long side of the working resolution in pixels, 16 to 8192 (the SVG keeps the input's size).
+    /// Time and memory grow with its pixels: at 4096 a photo takes about 20 s and 0.9 GB, at
+    /// 8192 about a minute and 3.5 GB (2 cores).
+    #[arg(long, default_value_t = 512, value_parser = working_size)]
     size: u32,
     /// Number of superpixels, below `--paths` (default: the operating point stored with the
     /// coarse model, for the budget). At most one per 16 pixels of the working image: more is
@@ -73,9 +75,10 @@ struct Args {
     /// Write MSE, PSNR, SSIM, path count and seconds per stage as JSON (`.json` file, or a folder).
     #[arg(long)]
     metrics: Option<PathBuf>,
-    /// SuperSVG-F: fine-tune every path against the image, this many steps (each moves every path).
-    #[arg(long, conflicts_with = "finetune_secs")]
-    finetune_steps: Option<usize>,
+    /// SuperSVG-F: fine-tune every path against the image, this many steps (0 to 100 000; each
+    /// moves every path).
+    #[arg(long, conflicts_with = "finetune_secs", value_parser = clap::value_parser!(u64).range(0..=MAX_FINETUNE_STEPS))]
+    finetune_steps: Option<u64>,
     /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
     #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
@@ -93,35 +96,53 @@ struct Args {
     quiet: bool,
 }
 
-/// The largest `--size`: a working image of 8192² is already 64 Mpx of f32 canvases.
-const MAX_SIZE: u32 = 8192;
+/// The most `--finetune-steps`: at 512 px and 500 paths a step takes about 25 ms, so 100 000
+/// steps are most of an hour, what `--finetune-secs` allows.
+const MAX_FINETUNE_STEPS: u64 = 100_000;
 
-/// A bar for SuperSVG-F on stderr: time or steps, with the running PSNR.
-fn finetune_bar(budget: Budget) -> ProgressBar {
-    let (length, unit) = match budget {
-        Budget::Seconds(seconds) => ((seconds * 1000.0) as u64, "ms"),
-        Budget::Steps(_) => (0, "steps"),
-    };
-    let bar = ProgressBar::new(length);
-    let template = format!("fine-tuning {{bar:30}} {{pos}}/{{len}} {unit}, {{msg}}");
-    if let Ok(style) = indicatif::ProgressStyle::with_template(&template) {
-        bar.set_style(style);
-    }
-    bar
+/// Set by the first Ctrl-C (or SIGTERM) during a job that fine-tunes: fine-tuning stops with the
+/// best drawing so far, which is written, and no further input is started.
+static STOP: AtomicBool = AtomicBool::new(false);
+/// Whether the job under way fine-tunes (a stop then writes its best drawing, instead of ending
+/// the program at once).
+static FINETUNING: AtomicBool = AtomicBool::new(false);
+
+/// Ctrl-C and SIGTERM: during fine-tuning the first asks for the best drawing so far to be
+/// written; otherwise, or the second time, the program ends at once (status 130; every file it
+/// writes appears whole or not at all).
+fn catch_interrupts() {
+    let _ = ctrlc::set_handler(|| {
+        if FINETUNING.load(Ordering::SeqCst) && !STOP.swap(true, Ordering::SeqCst) {
+            eprintln!("\nstopping: writing the best drawing so far (again to abort)");
+        } else {
+            std::process::exit(130);
+        }
+    });
 }
 
-/// What `--paths` asks for.
-#[derive(Clone, Copy, Debug)]
-enum PathBudget {
-    /// This many paths at most.
-    Count(usize),
-    /// A budget per image by [`auto_budget`].
-    Auto,
+/// A bar for SuperSVG-F on stderr: time or steps, with the running PSNR.
+fn finetune_bar(budget: Budget, shown: bool) -> Bar {
+    match budget {
+        Budget::Seconds(seconds) => Bar::new("fine-tuning", (seconds * 1000.0) as u64, "ms", shown),
+        Budget::Steps(steps) => Bar::new("fine-tuning", steps as u64, "steps", shown),
+    }
+}
+
+/// A long side within [`WORKING_SIZES`].
+fn working_size(text: &str) -> Result<u32, String> {
+    match text.parse::<u32>() {
+        Ok(size) if WORKING_SIZES.contains(&size) => Ok(size),
+        _ => Err(format!(
+            "{text:?} is not a working size: a number of pixels from {} to {}",
+            WORKING_SIZES.start(),
+            WORKING_SIZES.end()
+        )),
+    }
 }
 
 fn path_budget(text: &str) -> Result<PathBudget, String> {
     match text.parse::<usize>() {
-        _ if text == "auto" => Ok(PathBudget::Auto),
+        _ if text == "auto" => Ok(PathBudget::Auto(AutoBudget::default())),
         Ok(paths) if (2..=MAX_PATHS).contains(&paths) => Ok(PathBudget::Count(paths)),
         _ => Err(format!("{text:?} is not a path budget: a number from 2 to {MAX_PATHS}, or auto")),
     }
@@ -131,10 +152,13 @@ fn path_budget(text: &str) -> Result<PathBudget, String> {
 #[derive(Clone, Copy, Debug)]
 struct Colour([f32; 3]);
 
-/// `#rrggbb` (or `rrggbb`) as a colour.
+/// `#rrggbb` (or `rrggbb`) as a colour: six hexadecimal digits, nothing else (`from_str_radix`
+/// alone would take `+f` for `0f`).
 fn colour(text: &str) -> Result<Colour, String> {
     let hex = text.strip_prefix('#').unwrap_or(text);
-    let channel = |i: usize| hex.get(i..i + 2).and_then(|h| u8::from_str_radix(h, 16).ok());
+    let digits = hex.bytes().all(|b| b.is_ascii_hexdigit());
+    let channel =
+        |i: usize| hex.get(i..i + 2).filter(|_| digits).and_then(|h| u8::from_str_radix(h, 16).ok());
     match (hex.len(), channel(0), channel(2), channel(4)) {
         (6, Some(r), Some(g), Some(b)) => Ok(Colour([r, g, b].map(|c| c as f32 / 255.0))),
         _ => Err(format!("{text:?} is not a colour: write it #rrggbb")),
@@ -153,7 +177,9 @@ fn seconds(text: &str) -> Result<f64, String> {
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    catch_interrupts();
     match run(&args) {
+        Ok(_) if STOP.load(Ordering::SeqCst) => ExitCode::from(130),
         Ok(0) => ExitCode::SUCCESS,
         Ok(failed) => {
             eprintln!("{failed} of {} inputs failed", args.inputs.len());
@@ -190,7 +216,7 @@ enum Sink {
 }
 
 /// One input and every output it gets, decided before any work.
-struct Job {
+struct Planned {
     source: Source,
     svg: Sink,
     preview: Option<PathBuf>,
@@ -216,9 +242,9 @@ fn place(path: &Path, stdout_allowed: bool) -> Place {
     }
 }
 
-/// Every input with its outputs, or the first reason the command cannot run as asked. Creates
-/// the output folders (only once every check passed).
-fn plan(args: &Args) -> anyhow::Result<Vec<Job>> {
+/// Every input with its outputs, and the folders and files to write, or the first reason the
+/// command cannot run as asked. Creates nothing ([`Plan::prepare`] does, once the models load).
+fn plan(args: &Args) -> anyhow::Result<Plan> {
     let many = args.inputs.len() > 1;
     let sources: Vec<Source> = args
         .inputs
@@ -286,40 +312,62 @@ fn plan(args: &Args) -> anyhow::Result<Vec<Job>> {
             Source::Stdin => None,
         })
         .collect();
+    // (absolute path, what would be written there), for every output file.
     let mut taken: Vec<(PathBuf, String)> = Vec::new();
+    let mut files = Vec::new();
     let mut jobs = Vec::new();
     for (index, source) in sources.iter().enumerate() {
-        let job = Job {
+        let job = Planned {
             source: source.clone(),
             svg: svg[index].clone().map_or(Sink::Stdout, Sink::File),
             preview: preview[index].clone(),
             compare: compare[index].clone(),
             metrics: metrics[index].clone(),
         };
-        let files = [job.svg.file(), job.preview.as_ref(), job.compare.as_ref(), job.metrics.as_ref()];
-        for file in files.into_iter().flatten() {
+        let outputs = [
+            ("the SVG", job.svg.file()),
+            ("the --preview", job.preview.as_ref()),
+            ("the --compare", job.compare.as_ref()),
+            ("the --metrics", job.metrics.as_ref()),
+        ];
+        for (what, file) in outputs.into_iter().filter_map(|(what, file)| file.map(|f| (what, f))) {
             let absolute = absolute(file);
+            let this = format!("{what} of {}", source.name());
             if let Some((_, input)) = inputs.iter().find(|(path, _)| *path == absolute) {
                 return Err(anyhow!("{}: is the input {input}; refusing to overwrite it", file.display()));
             }
             if let Some((_, other)) = taken.iter().find(|(path, _)| *path == absolute) {
                 return Err(anyhow!(
-                    "{}: both {other} and {} would be written there; rename one input or use separate runs",
-                    file.display(),
-                    source.name()
+                    "{}: both {other} and {this} would be written there; give them different names",
+                    file.display()
                 ));
             }
-            taken.push((absolute, source.name()));
+            if std::fs::symlink_metadata(file).is_ok_and(|m| m.file_type().is_symlink()) && !file.exists() {
+                return Err(anyhow!("{}: a link to nothing; remove it or write elsewhere", file.display()));
+            }
+            taken.push((absolute, this));
+            files.push(file.clone());
         }
         jobs.push(job);
     }
-    for folder in &folders {
-        std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
+    Ok(Plan { jobs, folders, files })
+}
+
+/// What [`plan`] decided: the jobs, the output folders to create and the files to write.
+struct Plan {
+    jobs: Vec<Planned>,
+    folders: Vec<PathBuf>,
+    files: Vec<PathBuf>,
+}
+
+impl Plan {
+    /// Creates the output folders and checks that every output can be written there.
+    fn prepare(&self) -> anyhow::Result<()> {
+        for folder in &self.folders {
+            std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
+        }
+        self.files.iter().try_for_each(|file| writable(file))
     }
-    for (file, _) in &taken {
-        writable(file)?;
-    }
-    Ok(jobs)
 }
 
 impl Sink {
@@ -355,16 +403,22 @@ fn writable(file: &Path) -> anyhow::Result<()> {
     if !folder.is_dir() {
         return Err(anyhow!(fail(format!("the folder {} does not exist", folder.display()))));
     }
-    let probe = folder.join(format!(".supersvg-probe-{}", std::process::id()));
-    std::fs::File::create(&probe)
-        .map_err(|err| anyhow!(fail(format!("cannot write in {}: {err}", folder.display()))))?;
-    let _ = std::fs::remove_file(&probe);
-    Ok(())
+    probe_folder(folder).map_err(|err| anyhow!(fail(format!("cannot write in {}: {err}", folder.display()))))
 }
 
 /// Loads the models, then vectorizes every input; returns how many inputs failed.
 fn run(args: &Args) -> anyhow::Result<usize> {
-    let jobs = plan(args)?;
+    if let (PathBudget::Count(paths), Some(regions)) = (args.paths, args.regions)
+        && regions as usize >= paths
+    {
+        bail!(
+            "--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"
+        );
+    }
+    if let (PathBudget::Auto(_), Some(_)) = (args.paths, args.regions) {
+        bail!("--regions needs a number of --paths, not auto");
+    }
+    let plan = plan(args)?;
     let device = args.backend.device()?;
     let coarse = match &args.coarse {
         Some(path) => path.clone(),
@@ -376,196 +430,138 @@ fn run(args: &Args) -> anyhow::Result<usize> {
         (None, false) => Some(bundled("refine.ckpt")?),
     };
     let models = Models::load(&coarse, refine.as_deref(), &device)?;
+    plan.prepare()?;
+    let jobs = plan.jobs;
     if !args.quiet {
         let refine = refine.as_ref().map_or("none".to_string(), |p| p.display().to_string());
         eprintln!("models: coarse {}, refine {refine}", coarse.display());
     }
-    let paths = match (args.paths, args.regions) {
-        (PathBudget::Auto, Some(_)) => bail!("--regions needs a number of --paths, not auto"),
-        (PathBudget::Count(paths), Some(regions)) if regions as usize >= paths => bail!(
-            "--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"
-        ),
-        (PathBudget::Count(paths), _) => paths,
-        (PathBudget::Auto, None) => 0, // chosen per image
+    if (args.refine.is_some() || args.no_refine) && models.operating_point.refine_share == 0.0 {
+        eprintln!(
+            "warning: the operating point stored with {} keeps no share of the budget for E_r: it only \
+             fills what the coarse stage leaves unused, so --refine and --no-refine change little",
+            coarse.display()
+        );
+    }
+    let finetune = match (args.finetune_steps, args.finetune_secs) {
+        (Some(steps), _) => Some(Budget::Steps(steps as usize)),
+        (None, Some(seconds)) => Some(Budget::Seconds(seconds)),
+        (None, None) => None,
     };
-    let options = Options { paths, regions: args.regions.map(|r| r as usize), ..Options::default() };
+    let job = Job {
+        paths: args.paths,
+        regions: args.regions.map(|r| r as usize),
+        finetune: finetune.map(|budget| FinetuneOptions { budget, ..FinetuneOptions::default() }),
+        svg: SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() },
+        ..Job::default()
+    };
 
-    let bar = (jobs.len() > 1 && !args.quiet && std::io::stderr().is_terminal())
-        .then(|| ProgressBar::new(jobs.len() as u64));
-    let say = |line: String| match &bar {
-        Some(bar) => bar.println(line),
-        None => eprintln!("{line}"),
-    };
+    let bar = Bar::new("", jobs.len() as u64, "images", jobs.len() > 1 && !args.quiet);
     let mut failed = 0;
-    for job in &jobs {
-        match process(job, &models, &options, args, &device, &say) {
-            Ok(line) if !args.quiet => say(line),
+    for planned in &jobs {
+        if STOP.load(Ordering::SeqCst) {
+            break;
+        }
+        match process(planned, &models, &job, args, &device, &bar) {
+            Ok(line) if !args.quiet => bar.println(&line),
             Ok(_) => {}
             Err(message) => {
-                say(format!("error: {}: {message:#}", job.source.name()));
+                bar.println(&format!("error: {}: {message:#}", planned.source.name()));
                 failed += 1;
             }
         }
-        if let Some(bar) = &bar {
-            bar.inc(1);
-        }
+        bar.inc();
     }
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
+    bar.finish();
     Ok(failed)
+}
+
+/// The metrics file: the job's report and the input it was made from.
+#[derive(Serialize)]
+struct Metrics<'a> {
+    input: String,
+    #[serde(flatten)]
+    report: &'a Report,
 }
 
 /// One input: vectorize, write the SVG and whatever extra output was asked for; the line
 /// that reports it.
 fn process(
-    job: &Job,
+    planned: &Planned,
     models: &Models,
-    options: &Options,
+    job: &Job,
     args: &Args,
     device: &burn::tensor::Device,
-    say: &dyn Fn(String),
+    bar: &Bar,
 ) -> anyhow::Result<String> {
-    let started = Instant::now();
-    let load_options = LoadOptions {
+    let options = LoadOptions {
         long_side: args.size,
         allow_truncated: args.allow_truncated,
         background: args.background.0,
     };
-    let load = |path: &Path| load_with(path, &load_options);
-    let loaded = match &job.source {
-        Source::File(path) => load(path).map_err(|err| anyhow::Error::new(err.problem))?,
+    let loaded: Loaded = match &planned.source {
+        Source::File(path) => open(path, &options)?,
         Source::Stdin => {
-            // The decoder wants a file (it reads the header, then streams large PNGs).
             let mut bytes = Vec::new();
             std::io::stdin().read_to_end(&mut bytes).context("reading stdin")?;
-            let spool = std::env::temp_dir().join(format!("supersvg-stdin-{}", std::process::id()));
-            std::fs::write(&spool, &bytes).with_context(|| spool.display().to_string())?;
-            let loaded = load(&spool).map_err(|err| anyhow::Error::new(err.problem));
-            let _ = std::fs::remove_file(&spool);
-            loaded?
+            decode(&bytes, "<stdin>", &options)?
         }
     };
-    let decoded = started.elapsed().as_secs_f64();
-    let (w, h) = loaded.image.dimensions();
-    if let Some(regions) = options.regions
-        && regions > max_regions(w, h)
-    {
-        say(format!(
-            "warning: {}: --regions {regions} lowered to {} (one region per {MIN_REGION_PIXELS} pixels of the {w}×{h} working image)",
-            job.source.name(),
-            max_regions(w, h)
-        ));
-    }
-    let options = match args.paths {
-        PathBudget::Count(_) => options.clone(),
-        PathBudget::Auto => {
-            let point = operating_point(models, options);
-            let paths = auto_budget(&loaded.image, &point, options.compactness, &AutoBudget::default())?;
-            Options { paths, ..options.clone() }
-        }
-    };
-    let mut result = vectorize(models, &loaded.image, &options, device)?;
-    let budget = match (args.finetune_steps, args.finetune_secs) {
-        (Some(steps), _) => Some(Budget::Steps(steps)),
-        (None, Some(seconds)) => Some(Budget::Seconds(seconds)),
-        (None, None) => None,
-    };
-    if let Some(budget) = budget {
-        let tuning = Instant::now();
-        let options = FinetuneOptions { budget, ..FinetuneOptions::default() };
-        let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| finetune_bar(budget));
-        let mut show = |progress: &Progress| {
-            if let Some(bar) = &bar {
-                match progress.total_steps {
-                    Some(total) => {
-                        bar.set_length(total as u64);
-                        bar.set_position(progress.steps as u64);
-                    }
-                    None => bar.set_position((progress.seconds * 1000.0) as u64),
-                }
-                bar.set_message(format!("{:.2} dB", progress.psnr));
+    let tuning = job.finetune.as_ref().map(|f| finetune_bar(f.budget, !args.quiet && !bar.is_shown()));
+    let mut show = |progress: &Progress| {
+        if let Some(tuning) = &tuning {
+            match progress.total_steps {
+                Some(_) => tuning.set_position(progress.steps as u64),
+                None => tuning.set_position((progress.seconds * 1000.0) as u64),
             }
-        };
-        finetune_with_progress(&mut result.scene, &options, &mut show);
-        if let Some(bar) = bar {
-            bar.finish_and_clear();
+            tuning.set_message(format!("{:.2} dB", progress.psnr));
         }
-        result.timings.push(("finetune", tuning.elapsed().as_secs_f64()));
+        if STOP.load(Ordering::SeqCst) { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+    };
+    FINETUNING.store(job.finetune.is_some(), Ordering::SeqCst);
+    let outcome = run_with_progress(models, &loaded, job, device, &mut show);
+    FINETUNING.store(false, Ordering::SeqCst);
+    let outcome = outcome?;
+    if let Some(tuning) = tuning {
+        tuning.finish();
     }
-    let scene = result.scene.scene();
-
-    let export = Instant::now();
-    let (width, height) = loaded.original;
-    // One group per superpixel region, so editors select a region's paths together.
-    let layers: Vec<Option<u32>> = result.scene.paths().iter().map(|placed| placed.region).collect();
-    let svg_options = SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() };
-    let svg = to_svg_with(&scene, &layers, width, height, &svg_options)?;
-    let written = match &job.svg {
+    for warning in &outcome.warnings {
+        bar.println(&format!("warning: {}: {warning}", planned.source.name()));
+    }
+    let written = match &planned.svg {
         Sink::File(path) => {
-            write_atomic(path, svg.as_bytes()).with_context(|| path.display().to_string())?;
+            write_atomic(path, outcome.svg.as_bytes()).with_context(|| path.display().to_string())?;
             path.display().to_string()
         }
         Sink::Stdout => {
             let mut out = std::io::stdout().lock();
-            out.write_all(svg.as_bytes()).and_then(|()| out.flush()).context("stdout")?;
+            match out.write_all(outcome.svg.as_bytes()).and_then(|()| out.flush()) {
+                // The reader went away (`infer - -o - | head`): end quietly, as Unix tools do.
+                Err(err) if err.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(141),
+                result => result.context("stdout")?,
+            }
             "stdout".to_string()
         }
     };
-
-    let needs_render = job.preview.is_some() || job.compare.is_some() || job.metrics.is_some();
-    let rendering = needs_render.then(|| render_exact(&scene, w, h, [1.0; 3]));
-    if let (Some(path), Some(rendering)) = (&job.preview, &rendering) {
-        write_png(path, rendering).with_context(|| path.display().to_string())?;
+    if let Some(path) = &planned.preview {
+        write_png(path, &outcome.scene.canvas_rgb8()).with_context(|| path.display().to_string())?;
     }
-    if let (Some(path), Some(rendering)) = (&job.compare, &rendering) {
-        write_png(path, &side_by_side(&loaded.image, rendering))
+    if let Some(path) = &planned.compare {
+        write_png(path, &side_by_side(&loaded.image, &outcome.scene.canvas_rgb8()))
             .with_context(|| path.display().to_string())?;
     }
-    let export_seconds = export.elapsed().as_secs_f64();
+    let report = &outcome.report;
     let mut quality = String::new();
-    if let (Some(path), Some(rendering)) = (&job.metrics, &rendering) {
-        let drawn = image::DynamicImage::ImageRgb8(rendering.clone()).to_rgb32f();
-        let mut seconds = serde_json::Map::new();
-        seconds.insert("decode".into(), decoded.into());
-        for (stage, value) in &result.timings {
-            seconds.insert((*stage).into(), (*value).into());
-        }
-        seconds.insert("export".into(), export_seconds.into());
-        seconds.insert("total".into(), started.elapsed().as_secs_f64().into());
-        let value = psnr(&drawn, &loaded.image);
-        quality = format!(", PSNR {value:.2} dB");
-        let report = serde_json::json!({
-            "input": job.source.name(),
-            "width": width,
-            "height": height,
-            "working_width": w,
-            "working_height": h,
-            "paths": scene.len(),
-            "paths_by_stage": result
-                .scene
-                .counts()
-                .into_iter()
-                .map(|(origin, count)| (origin.name().to_string(), serde_json::Value::from(count)))
-                .collect::<serde_json::Map<_, _>>(),
-            "regions": result.scene.segmentation().regions.len(),
-            "operating_point": {
-                "coarse_share": result.operating_point.coarse_share,
-                "refine_share": result.operating_point.refine_share,
-            },
-            "mse": mse(&drawn, &loaded.image),
-            "psnr": value,
-            "ssim": ssim(&drawn, &loaded.image),
-            "seconds": seconds,
-        });
-        let text = serde_json::to_string_pretty(&report)?;
+    if let Some(path) = &planned.metrics {
+        let text = serde_json::to_string_pretty(&Metrics { input: planned.source.name(), report })?;
         write_atomic(path, text.as_bytes()).with_context(|| path.display().to_string())?;
+        quality = format!(", PSNR {:.2} dB", report.psnr);
     }
     Ok(format!(
         "{} -> {written}: {} paths{quality}, {:.2} s",
-        job.source.name(),
-        scene.len(),
-        started.elapsed().as_secs_f64()
+        planned.source.name(),
+        report.paths,
+        report.seconds.total
     ))
 }
 

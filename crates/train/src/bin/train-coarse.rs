@@ -25,6 +25,8 @@ fn main() -> ExitCode {
 }
 
 fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::Error>> {
+    // Before any image is read: a stop while decoding is heard, and ends the program cleanly.
+    train::trainer::catch_interrupts();
     let mut config: CoarseConfig = config::load(&args.config)?;
     if let Some(steps) = args.steps {
         config.train.steps = steps;
@@ -48,6 +50,6 @@ fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::
         &start.model_config,
         config.loss.boundary.dilation,
     )?;
-    let run = Run { dir, device, validation };
+    let run = Run { dir, device, validation, overwrite: args.overwrite };
     Ok(train(&objective, start, &config.train, &config.data, config_json, &run)?)
 }

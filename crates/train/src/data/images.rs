@@ -1,18 +1,21 @@
-//! A folder of training images, decoded once and kept small in memory.
+//! A folder of training images, decoded once at the training size and kept in memory.
 
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use image::imageops::FilterType;
-use image::{Rgb32FImage, RgbImage};
+use common::decode::{LoadOptions, open};
+use image::Rgb32FImage;
 use rayon::prelude::*;
 
 use super::source::DataError;
 
 pub(crate) const EXTENSIONS: [&str; 9] = ["png", "jpg", "jpeg", "webp", "gif", "bmp", "tif", "tiff", "tga"];
 
-/// Every readable image under a folder, scaled down to a long side, as 8-bit RGB over white.
+/// Every readable image under a folder, read as inference reads its input (turned by its EXIF
+/// orientation, over white, scaled down to a long side in floating point): a region of a
+/// training image is the region inference would cut from the same file at that size.
 pub struct ImageSet {
-    images: Vec<RgbImage>,
+    images: Vec<Rgb32FImage>,
 }
 
 impl ImageSet {
@@ -24,19 +27,24 @@ impl ImageSet {
             return Err(DataError::NotAFolder(folder.to_path_buf()));
         }
         let mut files = Vec::new();
-        collect_files(folder, &mut files);
+        collect_files(folder, &mut HashSet::new(), &mut files);
         files.sort();
-        let decoded: Vec<Option<RgbImage>> = files
+        let options = LoadOptions { long_side, ..LoadOptions::default() };
+        let decoded: Vec<Option<Rgb32FImage>> = files
             .par_iter()
-            .map(|path| match read(path, long_side) {
-                Ok(image) => Some(image),
+            .map(|path| match open(path, &options) {
+                _ if crate::trainer::interrupted() => None,
+                Ok(loaded) => Some(loaded.image),
                 Err(err) => {
-                    eprintln!("warning: skipping {}: {err}", path.display());
+                    eprintln!("warning: skipping {err}");
                     None
                 }
             })
             .collect();
-        let images: Vec<RgbImage> = decoded.into_iter().flatten().collect();
+        if crate::trainer::interrupted() {
+            return Err(DataError::Interrupted(folder.to_path_buf()));
+        }
+        let images: Vec<Rgb32FImage> = decoded.into_iter().flatten().collect();
         if images.is_empty() {
             return Err(DataError::NoImages(folder.to_path_buf()));
         }
@@ -53,18 +61,29 @@ impl ImageSet {
         self.images.is_empty()
     }
 
-    /// Image `index` as RGB in [0, 1].
-    pub fn get(&self, index: usize) -> Rgb32FImage {
-        image::DynamicImage::ImageRgb8(self.images[index].clone()).to_rgb32f()
+    /// Image `index`, RGB in [0, 1].
+    pub fn get(&self, index: usize) -> &Rgb32FImage {
+        &self.images[index]
+    }
+
+    /// The pixels of the largest image.
+    pub fn largest_pixels(&self) -> usize {
+        self.images.iter().map(|image| image.width() as usize * image.height() as usize).max().unwrap_or(0)
     }
 }
 
-fn collect_files(folder: &Path, files: &mut Vec<PathBuf>) {
+/// The image files under `folder`, recursively; each folder is read once however many links
+/// lead to it (`seen` holds the folders read, resolved), so a link loop ends.
+fn collect_files(folder: &Path, seen: &mut HashSet<PathBuf>, files: &mut Vec<PathBuf>) {
+    let Ok(resolved) = std::fs::canonicalize(folder) else { return };
+    if !seen.insert(resolved) {
+        return;
+    }
     let Ok(entries) = std::fs::read_dir(folder) else { return };
     for entry in entries.flatten() {
         let path = entry.path();
         if path.is_dir() {
-            collect_files(&path, files);
+            collect_files(&path, seen, files);
         } else if path
             .extension()
             .and_then(|e| e.to_str())
@@ -75,39 +94,10 @@ fn collect_files(folder: &Path, files: &mut Vec<PathBuf>) {
     }
 }
 
-/// Why a training image was skipped.
-#[derive(Debug, thiserror::Error)]
-enum ReadError {
-    /// The file cannot be opened.
-    #[error("{0}")]
-    Io(std::io::Error),
-    /// The decoder refused it.
-    #[error("{0}")]
-    Decode(image::ImageError),
-    /// Its pixels could not be turned into RGB.
-    #[error("{0}")]
-    Pixels(superpixel::InputError),
-}
-
-fn read(path: &Path, long_side: u32) -> Result<RgbImage, ReadError> {
-    let decoded = image::ImageReader::open(path)
-        .and_then(|reader| reader.with_guessed_format())
-        .map_err(ReadError::Io)?
-        .decode()
-        .map_err(ReadError::Decode)?;
-    let rgb = superpixel::to_rgb_over_white(&decoded).map_err(ReadError::Pixels)?;
-    let rgb8 = image::DynamicImage::ImageRgb32F(rgb).to_rgb8();
-    let (w, h) = rgb8.dimensions();
-    if w.max(h) <= long_side {
-        return Ok(rgb8);
-    }
-    let scale = long_side as f32 / w.max(h) as f32;
-    let (nw, nh) = (((w as f32 * scale).round() as u32).max(1), ((h as f32 * scale).round() as u32).max(1));
-    Ok(image::imageops::resize(&rgb8, nw, nh, FilterType::Triangle))
-}
-
 #[cfg(test)]
 mod tests {
+    use image::RgbImage;
+
     use super::*;
 
     #[test]
@@ -122,11 +112,27 @@ mod tests {
         std::fs::write(dir.join("broken.jpg"), b"not a jpeg").unwrap();
         std::fs::write(dir.join("notes.txt"), b"ignored").unwrap();
         let set = ImageSet::load(&dir, 64).unwrap();
+        let scaled = common::decode::load(&nested.join("a.png"), 64).unwrap().image;
+        assert_eq!(set.get(0), &scaled, "the pixels inference reads from the same file");
         assert_eq!(set.len(), 1);
         assert_eq!(set.get(0).dimensions(), (64, 21));
         std::fs::remove_dir_all(&dir).unwrap();
 
         let err = ImageSet::load(&dir, 64).err().unwrap();
         assert!(matches!(err, DataError::NotAFolder(_)) && err.to_string().contains("not a folder"), "{err}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_loop_is_read_once() {
+        let dir = std::env::temp_dir().join(format!("supersvg-images-loop-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("a")).unwrap();
+        RgbImage::from_pixel(20, 10, image::Rgb([1, 2, 3])).save(dir.join("a/x.png")).unwrap();
+        std::os::unix::fs::symlink(&dir, dir.join("a/up")).unwrap();
+        std::os::unix::fs::symlink(dir.join("a"), dir.join("also-a")).unwrap();
+        let set = ImageSet::load(&dir, 64).unwrap();
+        assert_eq!(set.len(), 1, "one image behind two links and a loop");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

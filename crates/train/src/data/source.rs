@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use burn::tensor::Device;
 use image::Rgb32FImage;
-use model::{CropBatch, ModelConfig};
+use model::{CropBatch, MIN_REGION_PIXELS, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -32,6 +32,18 @@ pub enum DataError {
         /// SLIC's reason.
         source: SlicError,
     },
+    /// A validation folder whose images give no region large enough to score.
+    #[error(
+        "validation: {}: no region of {min} pixels or more in any image at the validation size; \
+         use larger images or a larger validation.image_size",
+        path.display()
+    )]
+    NoValidationCrops {
+        /// The validation folder.
+        path: PathBuf,
+        /// The smallest region a crop is cut from.
+        min: usize,
+    },
     /// A scene of batch `index` could not be segmented (an option out of SLIC's range).
     #[error("batch {index}: a scene could not be segmented: {source}")]
     Segment {
@@ -43,7 +55,32 @@ pub enum DataError {
     /// A data thread stopped before delivering its batches (it panicked).
     #[error("the data thread preparing batch {0} stopped")]
     WorkerStopped(u64),
+    /// Scene after scene held no region large enough to be a sample: the images (or the
+    /// region counts of `[data] segments`) are too small for the model's crops.
+    #[error(
+        "batch {index}: {tried} scenes in a row gave no region of {min} pixels or more{}; use larger images, \
+         a larger data.image_size or fewer data.segments",
+        folder.as_ref().map(|f| format!(" (images from {})", f.display())).unwrap_or_default()
+    )]
+    NoUsableRegions {
+        /// The batch being made.
+        index: u64,
+        /// Scenes tried.
+        tried: usize,
+        /// The smallest region a sample is cut from.
+        min: usize,
+        /// The image folder, when scenes came from one.
+        folder: Option<PathBuf>,
+    },
+    /// Ctrl-C or SIGTERM while a folder was being read.
+    #[error("{}: interrupted while reading the images", .0.display())]
+    Interrupted(PathBuf),
 }
+
+/// How many scenes in a row may give no sample before a batch gives up: a folder of images too
+/// small for any region would otherwise keep the data thread (and the trainer waiting on it)
+/// busy for ever.
+const BARREN_SCENES: usize = 256;
 
 /// Region crops of one step, on the CPU.
 #[derive(Clone, Debug, PartialEq)]
@@ -70,9 +107,6 @@ pub struct DataSource {
     seed: u64,
 }
 
-/// Regions smaller than this many pixels are not used as samples (too little to learn from).
-const MIN_REGION_PIXELS: usize = 16;
-
 impl DataSource {
     /// Opens the sources of `config` (reading the image folder, if any) for a model of
     /// configuration `model` (whose input contract cuts the crops).
@@ -84,6 +118,18 @@ impl DataSource {
     ) -> Result<Self, DataError> {
         let images =
             config.images.as_deref().map(|folder| ImageSet::load(folder, config.image_size)).transpose()?;
+        if let (Some(folder), Some(images)) = (&config.images, &images)
+            && !config.synthetic
+            && images.largest_pixels() < MIN_REGION_PIXELS
+        {
+            let tried = images.len();
+            return Err(DataError::NoUsableRegions {
+                index: 0,
+                tried,
+                min: MIN_REGION_PIXELS,
+                folder: Some(folder.clone()),
+            });
+        }
         Ok(Self { config: config.clone(), images, model: model.clone(), batch_size, seed })
     }
 
@@ -100,7 +146,17 @@ impl DataSource {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(if self.config.fixed_batch { 0 } else { index });
         let mut crops = Vec::with_capacity(self.batch_size);
+        let mut barren = 0;
         while crops.len() < self.batch_size {
+            if barren == BARREN_SCENES {
+                let folder = self.config.images.clone();
+                return Err(DataError::NoUsableRegions {
+                    index,
+                    tried: barren,
+                    min: MIN_REGION_PIXELS,
+                    folder,
+                });
+            }
             let whole = self.scene(&mut rng);
             let [low, high] = self.config.segments;
             let count = rng.random_range(low..=high);
@@ -112,6 +168,7 @@ impl DataSource {
             let segmentation = segment(&scene, count, &self.config.segment_options())
                 .map_err(|source| DataError::Segment { index, source })?;
             let regions = pick_regions(&scene, &segmentation, self.config.pick, &mut rng);
+            barren = if regions.is_empty() { barren + 1 } else { 0 };
             for &region in regions.iter().take(self.config.regions_per_scene) {
                 if crops.len() == self.batch_size {
                     break;
@@ -130,7 +187,7 @@ impl DataSource {
             (Some(_), true) => rng.random_bool(self.config.synthetic_weight as f64),
         };
         match &self.images {
-            Some(images) if !synthetic => images.get(rng.random_range(0..images.len())),
+            Some(images) if !synthetic => images.get(rng.random_range(0..images.len())).clone(),
             _ => synthetic_scene(rng, self.config.image_size),
         }
     }
@@ -195,6 +252,29 @@ mod tests {
         let mut same = worst.clone();
         same.sort();
         assert_eq!(random, same, "both picks choose among the same regions");
+    }
+
+    #[test]
+    fn images_too_small_for_a_region_are_refused_and_never_hang() {
+        let dir = std::env::temp_dir().join(format!("supersvg-tiny-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
+        // 3 × 3 images: no region of 16 pixels can exist, said when the source is built.
+        image::RgbImage::from_pixel(3, 3, image::Rgb([9, 9, 9])).save(dir.join("a.png")).unwrap();
+        let config =
+            DataConfig { images: Some(dir.clone()), synthetic: false, image_size: 64, ..Default::default() };
+        let err = DataSource::new(&config, &model, 2, 0).err().expect("refused");
+        assert!(matches!(&err, DataError::NoUsableRegions { folder: Some(f), .. } if *f == dir), "{err}");
+        // 8 × 8 images cut into 16 regions: each region has 4 pixels, which a batch finds out.
+        image::RgbImage::from_fn(8, 8, |x, y| image::Rgb([(x * 30) as u8, (y * 30) as u8, 0]))
+            .save(dir.join("a.png"))
+            .unwrap();
+        let config = DataConfig { segments: [16, 16], window: 0, ..config };
+        let source = DataSource::new(&config, &model, 2, 0).unwrap();
+        let err = source.batch(0).err().expect("no batch");
+        assert!(err.to_string().contains("gave no region of 16 pixels"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -1,0 +1,151 @@
+//! Writing results without ever leaving a partial file behind, and without following a link
+//! someone else planted where a temporary file goes.
+
+use std::fs::{File, OpenOptions};
+use std::hash::{BuildHasher, Hasher};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+
+/// Writes `bytes` to `path` through a temporary file in the same folder that is renamed over
+/// `path` once complete and synced: a failure leaves either the old file or none, never half a
+/// file, and no temporary.
+///
+/// Only a regular file (or nothing) is replaced that way. Anything else that exists at `path` —
+/// a symbolic link, a device such as `/dev/stdout`, a pipe — is opened and written to as it is
+/// (renaming over it would replace the link or the device with a file); a folder is an error.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if let Ok(metadata) = std::fs::symlink_metadata(path) {
+        if metadata.is_dir() {
+            return Err(std::io::Error::other("is a folder"));
+        }
+        if !metadata.is_file() {
+            let mut file = OpenOptions::new().write(true).truncate(true).open(path)?;
+            return file.write_all(bytes).and_then(|()| file.flush());
+        }
+    }
+    let name = path.file_name().ok_or_else(|| std::io::Error::other("not a file path"))?;
+    let (mut file, temporary) = create_temporary(folder_of(path), &name.to_string_lossy())?;
+    let result =
+        file.write_all(bytes).and_then(|()| file.sync_all()).and_then(|()| std::fs::rename(&temporary, path));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temporary);
+    }
+    result
+}
+
+/// Whether files can be created in `folder`: creates a temporary there (exclusively, never
+/// through a link) and removes it.
+pub fn probe_folder(folder: &Path) -> std::io::Result<()> {
+    let (file, temporary) = create_temporary(folder, "probe")?;
+    drop(file);
+    std::fs::remove_file(temporary)
+}
+
+/// How many names a temporary file tries before giving up: each is random, so a clash means
+/// someone is planting names there.
+const TEMPORARY_TRIES: usize = 16;
+
+/// A new file `.{stem}.{random}.tmp` in `folder`, created exclusively (`O_EXCL`: an existing
+/// file or link of that name is never opened, so a planted link is never followed), and its path.
+pub fn create_temporary(folder: &Path, stem: &str) -> std::io::Result<(File, PathBuf)> {
+    let mut last = None;
+    for _ in 0..TEMPORARY_TRIES {
+        let candidate = folder.join(format!(".{stem}.{:016x}.tmp", random()));
+        match OpenOptions::new().write(true).create_new(true).open(&candidate) {
+            Ok(file) => return Ok((file, candidate)),
+            Err(err) if err.kind() == std::io::ErrorKind::AlreadyExists => last = Some(err),
+            Err(err) => return Err(err),
+        }
+    }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no temporary name was free")))
+}
+
+/// 64 unpredictable bits: std's randomly keyed hasher over the process, the time and a counter.
+fn random() -> u64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let mut hasher = std::collections::hash_map::RandomState::new().build_hasher();
+    hasher.write_u32(std::process::id());
+    hasher.write_u64(COUNTER.fetch_add(1, Ordering::Relaxed));
+    if let Ok(since) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
+        hasher.write_u128(since.as_nanos());
+    }
+    hasher.finish()
+}
+
+/// The folder `path` is in (`.` for a bare file name).
+pub fn folder_of(path: &Path) -> &Path {
+    path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+/// `image` encoded as PNG.
+pub fn png_bytes(image: &RgbImage) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
+        .expect("an RGB image encodes to memory");
+    bytes
+}
+
+/// Encodes `image` as PNG and writes it atomically.
+pub fn write_png(path: &Path, image: &RgbImage) -> std::io::Result<()> {
+    write_atomic(path, &png_bytes(image))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("supersvg-write-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn replaces_whole_files_and_leaves_nothing_on_failure() {
+        let dir = scratch("whole");
+        let file = dir.join("out.svg");
+        write_atomic(&file, b"first").unwrap();
+        write_atomic(&file, b"second").unwrap();
+        assert_eq!(std::fs::read(&file).unwrap(), b"second");
+        let missing = dir.join("no/such/folder/out.svg");
+        assert!(write_atomic(&missing, b"x").is_err());
+        probe_folder(&dir).unwrap();
+        assert!(probe_folder(&dir.join("no/such")).is_err());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temporary file is left");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn links_and_devices_are_written_through_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = scratch("links");
+        let target = dir.join("target.svg");
+        std::fs::write(&target, b"old").unwrap();
+        let link = dir.join("link.svg");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        write_atomic(&link, b"new").unwrap();
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link stays a link");
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        write_atomic(Path::new("/dev/null"), b"discarded").unwrap();
+        assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+        assert!(write_atomic(&dir, b"x").is_err(), "a folder is not overwritten");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn temporaries_are_new_files_with_unpredictable_names() {
+        let dir = scratch("names");
+        let (_, first) = create_temporary(&dir, "out.svg").unwrap();
+        let (_, second) = create_temporary(&dir, "out.svg").unwrap();
+        assert_ne!(first, second);
+        let name = first.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with(".out.svg.") && name.ends_with(".tmp"), "{name}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

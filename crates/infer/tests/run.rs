@@ -1,0 +1,141 @@
+//! `infer::run` with small untrained models: budgets, coverage, determinism, the automatic
+//! budget, and errors a caller can make. (What only the `infer` program does — arguments,
+//! files, streams — is in cli.rs.)
+
+use burn::tensor::Device;
+use common::Loaded;
+use image::{Rgb, Rgb32FImage};
+use infer::{AutoBudget, Job, Models, PathBudget, VectorizeError, run};
+use model::OperatingPoint;
+
+mod support;
+
+/// Tiny networks of a fixed seed, with or without E_r, at the default operating point.
+fn models(refine: bool) -> Models {
+    let (config, coarse, e_r) = support::tiny_models(&Device::flex());
+    Models { coarse, refine: refine.then_some(e_r), config, operating_point: OperatingPoint::default() }
+}
+
+fn photo() -> Loaded {
+    Loaded::from_image(Rgb32FImage::from_fn(96, 64, |x, y| {
+        Rgb([x as f32 / 48.0 % 1.0, y as f32 * 3.0 / 255.0, ((x + y) % 200) as f32 / 255.0])
+    }))
+}
+
+fn job(paths: usize) -> Job {
+    Job { paths: PathBudget::Count(paths), ..Job::default() }
+}
+
+/// How many pixels an SVG leaves less than fully covered, rendered on a transparent canvas.
+fn uncovered(svg: &str, width: u32, height: u32) -> usize {
+    let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default()).expect("valid SVG");
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).unwrap();
+    resvg::render(&tree, resvg::tiny_skia::Transform::identity(), &mut pixmap.as_mut());
+    pixmap.pixels().iter().filter(|p| p.alpha() < 255).count()
+}
+
+#[test]
+fn stays_within_the_budget_and_reports_what_it_drew() {
+    let (models, image, device) = (models(true), photo(), Device::flex());
+    for budget in [2usize, 3, 40, 100] {
+        let outcome = run(&models, &image, &job(budget), &device).unwrap();
+        let (report, svg) = (&outcome.report, &outcome.svg);
+        let paths = svg.matches("<path").count();
+        // The default operating point gives every path but the background a region of its own.
+        assert!(paths <= budget && paths * 10 >= budget * 9, "{paths} paths for a budget of {budget}");
+        assert_eq!((report.paths, report.paths_by_stage.total(), report.budget), (paths, paths, budget));
+        assert_eq!(report.paths_by_stage.background, 1);
+        assert_eq!((report.svg_bytes, report.width, report.working_width), (svg.len(), 96, 96));
+        assert!(svg.contains("viewBox=\"0 0 96 64\""));
+        // The report measures the scene's own canvas.
+        let drawn = common::psnr(&outcome.scene.canvas_image(), &image.image);
+        assert!((report.psnr - drawn).abs() < 1e-9 && report.psnr > 10.0, "{} vs {drawn}", report.psnr);
+        let seconds = report.seconds;
+        let parts = seconds.decode + seconds.superpixels + seconds.coarse + seconds.refine + seconds.export;
+        assert!((seconds.total - parts).abs() < 1e-9 && seconds.finetune.is_none());
+    }
+}
+
+#[test]
+fn paths_cover_every_pixel_at_any_budget_and_region_count() {
+    let image = photo();
+    let device = Device::flex();
+    let cases = [(2, None), (3, Some(1)), (40, Some(39)), (100, None), (400, Some(399)), (60, Some(7))];
+    for refine in [true, false] {
+        let models = models(refine);
+        for (paths, regions) in cases {
+            let outcome = run(&models, &image, &Job { regions, ..job(paths) }, &device).unwrap();
+            assert!(outcome.report.paths <= paths, "{paths} / {regions:?}");
+            assert!(!outcome.svg.contains("<rect"), "coverage must come from paths alone");
+            assert_eq!(
+                uncovered(&outcome.svg, 96, 64),
+                0,
+                "{paths} paths, {regions:?} regions, E_r {refine}"
+            );
+        }
+    }
+}
+
+#[test]
+fn runs_are_deterministic() {
+    let (models, image, device) = (models(true), photo(), Device::flex());
+    let first = run(&models, &image, &job(30), &device).unwrap();
+    let second = run(&models, &image, &job(30), &device).unwrap();
+    assert_eq!(first.svg, second.svg);
+}
+
+#[test]
+fn an_automatic_budget_gives_flat_art_few_paths_and_takes_no_region_count() {
+    let (models, device) = (models(true), Device::flex());
+    let flat = Loaded::from_image(Rgb32FImage::from_fn(80, 60, |x, _| {
+        if x < 40 { Rgb([0.8, 0.1, 0.1]) } else { Rgb([0.1, 0.15, 0.85]) }
+    }));
+    let auto = Job { paths: PathBudget::Auto(AutoBudget::default()), ..Job::default() };
+    let outcome = run(&models, &flat, &auto, &device).unwrap();
+    // Two flat halves are drawn exactly by two regions: the first rung of the ladder.
+    assert_eq!(outcome.report.budget, 8, "two flat halves got a budget of {}", outcome.report.budget);
+    assert!(outcome.report.auto_budget && outcome.report.paths <= 8);
+    let refused = run(&models, &flat, &Job { regions: Some(5), ..auto }, &device).err();
+    assert_eq!(refused, Some(VectorizeError::RegionsWithAuto));
+}
+
+#[test]
+fn budgets_and_region_counts_out_of_range_are_errors() {
+    let (models, image, device) = (models(false), photo(), Device::flex());
+    for paths in [0, 1, infer::MAX_PATHS + 1] {
+        assert_eq!(run(&models, &image, &job(paths), &device).err(), Some(VectorizeError::Budget(paths)));
+    }
+    for regions in [0, 40, 41] {
+        let err = run(&models, &image, &Job { regions: Some(regions), ..job(40) }, &device).err();
+        assert_eq!(err, Some(VectorizeError::Regions { regions, paths: 40 }));
+    }
+    // More regions than the image has room for: drawn with fewer, and said.
+    let tiny = Loaded::from_image(Rgb32FImage::from_pixel(8, 8, Rgb([0.3, 0.3, 0.3])));
+    let outcome = run(&models, &tiny, &Job { regions: Some(30), ..job(40) }, &device).unwrap();
+    assert!(outcome.report.regions <= 4, "{} regions on 64 pixels", outcome.report.regions);
+    let said = outcome.warnings.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ");
+    assert!(said.contains("30 regions lowered to 4"), "{said}");
+}
+
+#[test]
+fn no_fine_tuning_step_is_no_fine_tuning() {
+    use infer::finetune::{Budget, FinetuneOptions};
+    let (models, image, device) = (models(true), photo(), Device::flex());
+    let plain = run(&models, &image, &job(30), &device).unwrap();
+    for budget in [Budget::Steps(0), Budget::Seconds(0.0)] {
+        let finetune = Some(FinetuneOptions { budget, ..FinetuneOptions::default() });
+        let tuned = run(&models, &image, &Job { finetune, ..job(30) }, &device).unwrap();
+        assert!(tuned.svg == plain.svg, "{budget:?} changed the drawing");
+        assert_eq!(tuned.report.finetune_steps, Some(0));
+    }
+}
+
+#[test]
+fn a_flat_picture_is_one_path_and_says_so() {
+    let (models, device) = (models(true), Device::flex());
+    let flat = Loaded::from_image(Rgb32FImage::from_pixel(80, 60, Rgb([0.1, 0.5, 0.8])));
+    let outcome = run(&models, &flat, &job(500), &device).unwrap();
+    assert_eq!(outcome.report.paths, 1, "{:?}", outcome.report.paths_by_stage);
+    let said: Vec<String> = outcome.warnings.iter().map(ToString::to_string).collect();
+    assert!(said.iter().any(|w| w.starts_with("1 of 500 paths drawn")), "{said:?}");
+}
