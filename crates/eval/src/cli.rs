@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use burn::tensor::Device;
-use infer::models::{Models, ModelsError, bundled};
+use infer::models::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, Models, ModelsError, bundled};
 
 /// Prints a failed run's error and gives the exit code: 0 on success, 1 on error.
 pub fn finish(result: anyhow::Result<()>) -> ExitCode {
@@ -39,14 +39,18 @@ pub fn files_in(dir: &Path) -> Result<Vec<PathBuf>, ListError> {
     Ok(files)
 }
 
-/// Both models, from the given checkpoints or the bundled ones, with the files they came from.
+/// Both models, from the given checkpoints or the bundled ones ([`Models::identities`] says
+/// which).
 pub fn load_models(
     coarse: Option<&Path>,
     refine: Option<&Path>,
     device: &Device,
-) -> Result<(Models, PathBuf, PathBuf), ModelsError> {
-    let coarse = coarse.map_or_else(|| bundled("coarse.ckpt"), |p| Ok(p.to_path_buf()))?;
-    let refine = refine.map_or_else(|| bundled("refine.ckpt"), |p| Ok(p.to_path_buf()))?;
-    let models = Models::load(&coarse, Some(&refine), device)?;
-    Ok((models, coarse, refine))
+) -> Result<Models, ModelsError> {
+    let source = |path: Option<&Path>, built_in| match path {
+        Some(path) => Ok(ModelSource::File(path.to_path_buf())),
+        None => bundled(built_in),
+    };
+    let coarse = source(coarse, &BUILT_IN_COARSE)?;
+    let refine = source(refine, &BUILT_IN_REFINE)?;
+    Ok(Models::from_sources(&coarse, Some(&refine), device)?)
 }

@@ -108,7 +108,7 @@ fn svgs_are_what_infer_writes() {
     assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
 
     let device = burn::tensor::Device::flex();
-    let (models, _, _) = eval::cli::load_models(None, None, &device).unwrap();
+    let models = eval::cli::load_models(None, None, &device).unwrap();
     let image = common::decode::load(&dir.join("a.png"), 48).unwrap();
     let budgets = [
         ("a-b-24.svg", infer::PathBudget::Count(24)),

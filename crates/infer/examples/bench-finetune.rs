@@ -16,7 +16,6 @@ use clap::Parser;
 use common::decode::load;
 use common::psnr;
 use infer::finetune::{Budget, FinetuneOptions, finetune};
-use infer::models::bundled;
 use infer::{Job, Models, PathBudget, run};
 
 /// Time SuperSVG-F on one image.
@@ -46,7 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let device = Device::flex();
     let loaded = load(&args.image, args.size)?;
     let image = &loaded.image;
-    let models = Models::load(&bundled("coarse.ckpt")?, Some(&bundled("refine.ckpt")?), &device)?;
+    let models = Models::bundled(true, &device)?;
     let drawn =
         run(&models, &loaded, &Job { paths: PathBudget::Count(args.paths), ..Job::default() }, &device)?;
     let psnr_b = drawn.report.psnr;

@@ -5,7 +5,7 @@
 //! ```no_run
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let device = burn::tensor::Device::flex();
-//! let models = infer::Models::load(&infer::models::bundled("coarse.ckpt")?, None, &device)?;
+//! let models = infer::Models::bundled(true, &device)?;
 //! let image = common::decode::load(std::path::Path::new("photo.jpg"), 512)?;
 //! let outcome = infer::run(&models, &image, &infer::Job::default(), &device)?;
 //! std::fs::write("photo.svg", &outcome.svg)?;

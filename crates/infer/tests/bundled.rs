@@ -61,3 +61,36 @@ fn bundled_models_draw_the_example_image() {
     assert!(ours >= floor - 1.0, "bundled models: {ours:.2} dB, mosaic of {budget} regions: {floor:.2} dB");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// What `cargo install` gives: the program alone in a folder of its own, run from another,
+/// with no models folder anywhere, draws what the checkpoint files in models/ draw.
+#[test]
+fn an_installed_program_carries_its_models() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let input = format!("{root}/assets/astronaut.jpg");
+    let dir = std::env::temp_dir().join(format!("supersvg-installed-{}", std::process::id()));
+    let (bin, elsewhere) = (dir.join("bin"), dir.join("work"));
+    std::fs::create_dir_all(&bin).unwrap();
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let installed = bin.join("infer");
+    std::fs::copy(env!("CARGO_BIN_EXE_infer"), &installed).unwrap();
+    let draw = |program: &std::path::Path, extra: &[String], out: &str| {
+        let result = Command::new(program)
+            .args([&input, "-o", out, "--paths", "60", "--size", "96"])
+            .args(extra)
+            .current_dir(&elsewhere)
+            .env_remove("SUPERSVG_MODELS")
+            .output()
+            .unwrap();
+        assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+        String::from_utf8_lossy(&result.stderr).into_owned()
+    };
+    let said = draw(&installed, &[], "installed.svg");
+    assert!(said.contains("coarse built-in coarse.ckpt (weights "), "{said}");
+    let files = ["--coarse", "coarse.ckpt", "--refine", "refine.ckpt"]
+        .map(|a| if a.ends_with(".ckpt") { format!("{root}/models/{a}") } else { a.to_string() });
+    draw(std::path::Path::new(env!("CARGO_BIN_EXE_infer")), &files, "files.svg");
+    let read = |name: &str| std::fs::read(elsewhere.join(name)).unwrap();
+    assert!(read("installed.svg") == read("files.svg"), "the built-in models draw otherwise than models/");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -5,6 +5,7 @@
 use burn::tensor::Device;
 use common::Loaded;
 use image::{Rgb, Rgb32FImage};
+use infer::models::Identity;
 use infer::{AutoBudget, Job, Models, PathBudget, VectorizeError, run};
 use model::OperatingPoint;
 
@@ -13,7 +14,14 @@ mod support;
 /// Tiny networks of a fixed seed, with or without E_r, at the default operating point.
 fn models(refine: bool) -> Models {
     let (config, coarse, e_r) = support::tiny_models(&Device::flex());
-    Models { coarse, refine: refine.then_some(e_r), config, operating_point: OperatingPoint::default() }
+    let identities = (Identity::in_memory("tiny E_c"), refine.then(|| Identity::in_memory("tiny E_r")));
+    Models {
+        coarse,
+        refine: refine.then_some(e_r),
+        config,
+        operating_point: OperatingPoint::default(),
+        identities,
+    }
 }
 
 fn photo() -> Loaded {

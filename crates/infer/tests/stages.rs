@@ -10,7 +10,7 @@ use image::{Rgb, Rgb32FImage};
 use infer::coarse::{CoarseBudget, draw_coarse};
 use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
-use infer::models::{Models, bundled};
+use infer::models::Models;
 use infer::refine::draw_refinement;
 use infer::scene::{Origin, Scene};
 use raster::Shape;
@@ -29,9 +29,7 @@ fn images() -> Vec<Rgb32FImage> {
 #[test]
 fn no_stage_lowers_the_psnr() {
     let device = Device::flex();
-    let coarse = bundled("coarse.ckpt").unwrap();
-    let refine = bundled("refine.ckpt").unwrap();
-    let models = Models::load(&coarse, Some(&refine), &device).unwrap();
+    let models = Models::bundled(true, &device).unwrap();
     let refine = models.refine.as_ref().unwrap();
     let budget = 60;
     for image in images() {
@@ -90,7 +88,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let segmentation = segment(&image, 12, &SegmentOptions::default()).unwrap();
     let regions = segmentation.regions.len();
     let mut scene = Scene::new(image.clone(), segmentation.clone());
-    let models = Models::load(&bundled("coarse.ckpt").unwrap(), None, &device).unwrap();
+    let models = Models::bundled(false, &device).unwrap();
     let drawing = FallbackDrawing::new(&image, &segmentation);
     let no_coarse = CoarseBudget { paths: 0, total: regions + 1 };
     draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);

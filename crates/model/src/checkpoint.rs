@@ -279,9 +279,29 @@ impl Checkpoint {
         Self::read(path).map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
     }
 
+    /// Reads a checkpoint held in memory (one built into a program); `name` stands for it in
+    /// errors, as a path does for a file.
+    pub fn from_bytes(bytes: &[u8], name: &Path) -> Result<Self, CheckpointError> {
+        Reader::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
+            .map_err(FormatProblem::from)
+            .and_then(Self::parse)
+            .map_err(|problem| CheckpointError::Format { path: name.to_path_buf(), problem })
+    }
+
+    /// The checksum of the weights (what every checkpoint stores and loading verifies): the
+    /// identity of a model, whatever file it came in.
+    pub fn weights_checksum(&self) -> String {
+        let entries = entries(&self.model).expect("the weights were read from a burnpack");
+        checksum(entries.iter().map(|e| (e.name.as_str(), &e.data)))
+    }
+
     /// [`Checkpoint::load`] of a file that exists.
     fn read(path: &Path) -> Result<Self, FormatProblem> {
-        let reader = Reader::from_file(path)?;
+        Self::parse(Reader::from_file(path)?)
+    }
+
+    /// The checkpoint in a burnpack `reader`.
+    fn parse(reader: Reader) -> Result<Self, FormatProblem> {
         let metadata = reader.metadata().clone();
         let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
         let format = get(key::FORMAT)?;

@@ -28,9 +28,9 @@ pub enum BackendError {
     /// The name is not one of `flex`, `ndarray`, `wgpu`.
     #[error("unknown backend `{0}`: expected one of flex, ndarray, wgpu")]
     Unknown(String),
-    /// The program was built without the `wgpu` feature.
-    #[error("backend `wgpu` is not compiled in: rebuild with `--features wgpu`")]
-    NotCompiled,
+    /// The program was built without the backend's feature (`ndarray` or `wgpu`).
+    #[error("backend `{0}` is not compiled in: rebuild with `--features {0}`")]
+    NotCompiled(Backend),
     /// wgpu found no adapter or could not open a device.
     #[error(
         "backend `wgpu` is unavailable: {0} (on a machine without a GPU, install Mesa's Vulkan \
@@ -52,10 +52,11 @@ impl Backend {
         }
     }
 
-    /// Whether this build can create the backend at all (wgpu needs its feature).
+    /// Whether this build can create the backend at all (ndarray and wgpu need their features).
     pub fn is_compiled(self) -> bool {
         match self {
-            Backend::Flex | Backend::Ndarray => true,
+            Backend::Flex => true,
+            Backend::Ndarray => cfg!(feature = "ndarray"),
             Backend::Wgpu => cfg!(feature = "wgpu"),
         }
     }
@@ -67,13 +68,13 @@ impl Backend {
     pub fn device(self) -> Result<Device, BackendError> {
         match self {
             Backend::Flex => Ok(Device::flex()),
-            #[allow(deprecated)]
-            Backend::Ndarray => Ok(Device::ndarray()),
+            Backend::Ndarray => ndarray_device(),
             Backend::Wgpu => wgpu_device(),
         }
     }
 
-    /// The device for this backend with autodiff enabled (training, fine-tuning).
+    /// The device for this backend with autodiff enabled (training; needs the `autodiff` feature).
+    #[cfg(feature = "autodiff")]
     pub fn autodiff_device(self) -> Result<Device, BackendError> {
         Ok(self.device()?.autodiff())
     }
@@ -92,7 +93,18 @@ fn wgpu_device() -> Result<Device, BackendError> {
 
 #[cfg(not(feature = "wgpu"))]
 fn wgpu_device() -> Result<Device, BackendError> {
-    Err(BackendError::NotCompiled)
+    Err(BackendError::NotCompiled(Backend::Wgpu))
+}
+
+#[cfg(feature = "ndarray")]
+fn ndarray_device() -> Result<Device, BackendError> {
+    #[allow(deprecated)]
+    Ok(Device::ndarray())
+}
+
+#[cfg(not(feature = "ndarray"))]
+fn ndarray_device() -> Result<Device, BackendError> {
+    Err(BackendError::NotCompiled(Backend::Ndarray))
 }
 
 impl FromStr for Backend {
@@ -130,6 +142,7 @@ mod tests {
         assert_eq!(err.to_string(), "unknown backend `cuda`: expected one of flex, ndarray, wgpu");
     }
 
+    #[cfg(all(feature = "ndarray", feature = "autodiff"))]
     #[test]
     fn cpu_backends_always_available() {
         assert!(Backend::Flex.device().is_ok());

@@ -39,7 +39,7 @@ enum Peer {
     Potrace,
     /// SLIC regions filled with their mean colour, pixel-exact.
     Slic,
-    /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1` draws it.
+    /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1 --no-refine` draws it.
     Fallback,
 }
 
@@ -220,7 +220,11 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
     }
     let device = args.backend.device()?;
-    let (models, _, _) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
+    let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
+    // The fallback row draws regions only: a region that lowers nothing is not drawn, and E_r
+    // would spend what it leaves.
+    let regions_only =
+        infer::Models { refine: None, identities: (models.identities.0.clone(), None), ..models.clone() };
     let scratch = std::env::temp_dir().join(format!("supersvg-eval-{}", std::process::id()));
     std::fs::create_dir_all(&scratch)?;
 
@@ -338,7 +342,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             }
             if wanted(Peer::Fallback) {
                 let alone = Job { regions: Some(budget - 1), ..job };
-                let outcome = run(&models, &loaded, &alone, &device)?;
+                let outcome = run(&regions_only, &loaded, &alone, &device)?;
                 let (drawn, seconds, anatomy) = ours(table, Method::Fallback, &outcome);
                 record(table, Method::Fallback, drawn, seconds, anatomy, &mut tiles);
             }

@@ -111,7 +111,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         bail!("--size: {} is out of range ({} to {} pixels)", args.size, sizes.start(), sizes.end());
     }
     let device = args.backend.device()?;
-    let (models, coarse, refine) = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
+    let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let mut points = Vec::new();
     for &coarse_share in &args.coarse_share {
         for &refine_share in &args.refine_share {
@@ -162,8 +162,8 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         args.dir.display(),
         images.len(),
         args.size,
-        coarse.display(),
-        refine.display(),
+        models.identities.0,
+        models.identities.1.as_ref().map_or("none".to_string(), ToString::to_string),
         std::env::args().collect::<Vec<_>>().join(" ")
     );
     for paths in &args.paths {

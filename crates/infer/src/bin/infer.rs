@@ -17,7 +17,7 @@ use common::write::{folder_of, probe_folder, write_atomic, write_png};
 use common::{Loaded, WORKING_SIZES};
 use image::{Rgb32FImage, RgbImage};
 use infer::finetune::{Budget, FinetuneOptions, Progress};
-use infer::models::bundled;
+use infer::models::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, bundled};
 use infer::{AutoBudget, Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
 use raster::{Backend, MAX_DECIMALS, SvgOptions};
 use serde::Serialize;
@@ -44,10 +44,12 @@ struct Args {
     /// (flat art gets few paths, photos many).
     #[arg(long, default_value = "500", value_parser = path_budget)]
     paths: PathBudget,
-    /// Coarse-model checkpoint (default: the bundled one).
+    /// Coarse-model checkpoint (default: the bundled one, built into this program, or
+    /// coarse.ckpt in $SUPERSVG_MODELS when that is set).
     #[arg(long)]
     coarse: Option<PathBuf>,
-    /// Refinement-model checkpoint (default: the bundled one).
+    /// Refinement-model checkpoint (default: the bundled one, built into this program, or
+    /// refine.ckpt in $SUPERSVG_MODELS when that is set).
     #[arg(long)]
     refine: Option<PathBuf>,
     /// Coarse paths only, no refinement.
@@ -421,26 +423,27 @@ fn run(args: &Args) -> anyhow::Result<usize> {
     let plan = plan(args)?;
     let device = args.backend.device()?;
     let coarse = match &args.coarse {
-        Some(path) => path.clone(),
-        None => bundled("coarse.ckpt")?,
+        Some(path) => ModelSource::File(path.clone()),
+        None => bundled(&BUILT_IN_COARSE)?,
     };
     let refine = match (&args.refine, args.no_refine) {
         (_, true) => None,
-        (Some(path), false) => Some(path.clone()),
-        (None, false) => Some(bundled("refine.ckpt")?),
+        (Some(path), false) => Some(ModelSource::File(path.clone())),
+        (None, false) => Some(bundled(&BUILT_IN_REFINE)?),
     };
-    let models = Models::load(&coarse, refine.as_deref(), &device)?;
+    let models = Models::from_sources(&coarse, refine.as_ref(), &device)?;
     plan.prepare()?;
     let jobs = plan.jobs;
     if !args.quiet {
-        let refine = refine.as_ref().map_or("none".to_string(), |p| p.display().to_string());
-        eprintln!("models: coarse {}, refine {refine}", coarse.display());
+        let (coarse, refine) = &models.identities;
+        let refine = refine.as_ref().map_or("none".to_string(), ToString::to_string);
+        eprintln!("models: coarse {coarse}, refine {refine}");
     }
     if (args.refine.is_some() || args.no_refine) && models.operating_point.refine_share == 0.0 {
         eprintln!(
             "warning: the operating point stored with {} keeps no share of the budget for E_r: it only \
              fills what the coarse stage leaves unused, so --refine and --no-refine change little",
-            coarse.display()
+            coarse.name().display()
         );
     }
     let finetune = match (args.finetune_steps, args.finetune_secs) {
