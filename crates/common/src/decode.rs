@@ -95,6 +95,18 @@ pub enum DecodeProblem {
         /// Height in pixels.
         height: u32,
     },
+    /// Pixels in memory whose length does not match the size they were given with.
+    #[error("{bytes} bytes are not {width}×{height} pixels of {} bytes each", layout.channels())]
+    PixelCount {
+        /// Bytes given.
+        bytes: usize,
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+        /// Their layout.
+        layout: PixelLayout,
+    },
     /// A PNG whose palette the decoder did not expand.
     #[error("unexpanded palette")]
     UnexpandedPalette,
@@ -197,8 +209,9 @@ fn read<R: BufRead + Seek>(
     }
     let pixels = u64::from(width) * u64::from(height);
     let target = fit(width, height, long_side);
-    let shrinks = pixels > SHRINK_FACTOR * u64::from(target.0) * u64::from(target.1);
-    let (image, original) = if format == ImageFormat::Png && (shrinks || pixels > MAX_DECODED_PIXELS) {
+    let streamed =
+        format == ImageFormat::Png && (shrinks((width, height), target) || pixels > MAX_DECODED_PIXELS);
+    let (image, original) = if streamed {
         (
             stream_png(reader().map_err(DecodeProblem::Io)?, (width, height), target, background)?,
             (width, height),
@@ -213,20 +226,97 @@ fn read<R: BufRead + Seek>(
         let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
         let mut decoded = DynamicImage::from_decoder(decoder).map_err(DecodeProblem::Image)?;
         decoded.apply_orientation(orientation);
-        let (width, height) = (decoded.width(), decoded.height());
-        let (target_width, target_height) = fit(width, height, long_side);
-        let image = if (target_width, target_height) == (width, height) {
-            to_rgb_over(&decoded, background)
-        } else if shrinks {
-            shrink_native(&decoded, (target_width, target_height), background)
-        } else {
-            resized(&to_rgb_over(&decoded, background), long_side)
-        };
-        (image, (width, height))
+        (working(&decoded, long_side, background), (decoded.width(), decoded.height()))
     } else {
         return Err(DecodeProblem::TooLarge { width, height });
     };
     Ok(Loaded { image, original, seconds: 0.0 })
+}
+
+/// `decoded` as the working image: RGB over `background`, its long side at most `long_side`.
+/// Much larger images are shrunk in their own bit depth first (see [`SHRINK_FACTOR`]).
+fn working(decoded: &DynamicImage, long_side: u32, background: [f32; 3]) -> Rgb32FImage {
+    let (width, height) = (decoded.width(), decoded.height());
+    let target = fit(width, height, long_side);
+    if target == (width, height) {
+        to_rgb_over(decoded, background)
+    } else if shrinks((width, height), target) {
+        shrink_native(decoded, target, background)
+    } else {
+        resized(&to_rgb_over(decoded, background), long_side)
+    }
+}
+
+/// Whether an image of `size` is shrunk to `target` in its own bit depth, not in floating point.
+fn shrinks(size: (u32, u32), target: (u32, u32)) -> bool {
+    let pixels = |(w, h): (u32, u32)| u64::from(w) * u64::from(h);
+    pixels(size) > SHRINK_FACTOR * pixels(target)
+}
+
+/// The layouts [`from_pixels`] reads: 8 bits a channel, rows top to bottom, channels
+/// interleaved (what a `H×W×C` `uint8` array holds in C order).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelLayout {
+    /// One grey value a pixel.
+    Grey,
+    /// Red, green, blue.
+    Rgb,
+    /// Red, green, blue and opacity (composited over the background).
+    Rgba,
+}
+
+impl PixelLayout {
+    /// The layout with this many channels a pixel (1, 3 or 4).
+    pub fn from_channels(channels: usize) -> Option<Self> {
+        match channels {
+            1 => Some(Self::Grey),
+            3 => Some(Self::Rgb),
+            4 => Some(Self::Rgba),
+            _ => None,
+        }
+    }
+
+    /// Bytes a pixel.
+    pub fn channels(self) -> usize {
+        match self {
+            Self::Grey => 1,
+            Self::Rgb => 3,
+            Self::Rgba => 4,
+        }
+    }
+}
+
+/// Pixels a caller holds in memory (a numpy array, a frame of video) as the working image,
+/// exactly as a file of those pixels is read: transparency over `options.background`, the long
+/// side scaled down to `options.long_side`. `input` names them in errors.
+pub fn from_pixels(
+    pixels: &[u8],
+    (width, height): (u32, u32),
+    layout: PixelLayout,
+    input: &str,
+    options: &LoadOptions,
+) -> Result<Loaded, DecodeError> {
+    let fail = |problem| DecodeError { input: input.to_string(), problem };
+    if width == 0 || height == 0 {
+        return Err(fail(DecodeProblem::Empty { width, height }));
+    }
+    let expected = u64::from(width) * u64::from(height) * layout.channels() as u64;
+    if pixels.len() as u64 != expected {
+        return Err(fail(DecodeProblem::PixelCount { bytes: pixels.len(), width, height, layout }));
+    }
+    if u64::from(width) * u64::from(height) > MAX_DECODED_PIXELS {
+        return Err(fail(DecodeProblem::TooLarge { width, height }));
+    }
+    let started = std::time::Instant::now();
+    let buffer = pixels.to_vec();
+    let decoded = match layout {
+        PixelLayout::Grey => image::GrayImage::from_raw(width, height, buffer).map(DynamicImage::ImageLuma8),
+        PixelLayout::Rgb => image::RgbImage::from_raw(width, height, buffer).map(DynamicImage::ImageRgb8),
+        PixelLayout::Rgba => image::RgbaImage::from_raw(width, height, buffer).map(DynamicImage::ImageRgba8),
+    }
+    .expect("the length was checked against the size");
+    let image = working(&decoded, options.long_side, options.background);
+    Ok(Loaded { image, original: (width, height), seconds: started.elapsed().as_secs_f64() })
 }
 
 /// `decoded` shrunk to `target` in its own bit depth (8 or 16 bits; transparency composited over
@@ -463,6 +553,29 @@ mod tests {
         assert!(err.to_string().starts_with("<stdin>: "), "{err}");
         let err = decode(b"plain text", "<stdin>", &options).unwrap_err();
         assert!(matches!(err.problem, DecodeProblem::UnknownFormat), "{err}");
+    }
+
+    #[test]
+    fn pixels_in_memory_read_as_their_file_does() {
+        // RGBA with transparency, larger than the working size: the same pixels as the PNG.
+        let picture = image::RgbaImage::from_fn(60, 40, |x, y| {
+            image::Rgba([(x * 4) as u8, (y * 6) as u8, 200, if x < 30 { 255 } else { (y * 6) as u8 }])
+        });
+        let mut bytes = Vec::new();
+        picture.write_to(&mut Cursor::new(&mut bytes), ImageFormat::Png).unwrap();
+        let options = LoadOptions { long_side: 32, ..LoadOptions::default() };
+        let from_png = decode(&bytes, "mem.png", &options).unwrap();
+        let from_pixels =
+            from_pixels(picture.as_raw(), (60, 40), PixelLayout::Rgba, "array", &options).unwrap();
+        assert_eq!(from_pixels.image, from_png.image);
+        assert_eq!(from_pixels.original, (60, 40));
+        let rgb = image::RgbImage::from_fn(3, 2, |x, y| Rgb([(x * 80) as u8, (y * 200) as u8, 7]));
+        let loaded = super::from_pixels(rgb.as_raw(), (3, 2), PixelLayout::Rgb, "array", &options).unwrap();
+        assert_eq!(loaded.image.get_pixel(2, 1).0, [160.0 / 255.0, 200.0 / 255.0, 7.0 / 255.0]);
+        let err = super::from_pixels(&[0; 17], (3, 2), PixelLayout::Rgb, "array", &options).unwrap_err();
+        assert_eq!(err.to_string(), "array: 17 bytes are not 3×2 pixels of 3 bytes each");
+        let err = super::from_pixels(&[], (0, 2), PixelLayout::Grey, "array", &options).unwrap_err();
+        assert!(matches!(err.problem, DecodeProblem::Empty { .. }), "{err}");
     }
 
     #[test]

@@ -1,11 +1,12 @@
 //! The primitives every supersvg crate shares, each defined once: rectangles that cannot be
 //! inverted ([`Rect`]: pixel boxes and unit-square bounds), the area of a polygon, reading an image at the working
-//! resolution from a file or from bytes ([`decode`]), quality measures ([`metrics`]: MSE,
+//! resolution from a file, bytes or pixels ([`decode`]), listing a folder of inputs ([`folder`]), quality measures ([`metrics`]: MSE,
 //! PSNR, SSIM), writing files so that no partial or hijacked file is ever left ([`write`]),
 //! the command-line programs' progress bar ([`progress`], behind the `progress` feature)
 //! and their tests' helpers ([`testing`], behind the `testing` feature).
 
 pub mod decode;
+pub mod folder;
 pub mod metrics;
 mod polygon;
 #[cfg(feature = "progress")]
@@ -15,7 +16,7 @@ mod rect;
 pub mod testing;
 pub mod write;
 
-pub use decode::{DecodeError, DecodeProblem, LoadOptions, Loaded, WORKING_SIZES};
+pub use decode::{DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout, WORKING_SIZES};
 pub use metrics::{mse, psnr, psnr_of_mse, ssim};
 pub use polygon::signed_area;
 pub use rect::{Bounds, PixelBox, Rect};

@@ -1,0 +1,192 @@
+//! `supersvg._native`: the Python package's bridge to [`infer::run`]. One function a kind of
+//! input (a file, a file's bytes, pixels); `supersvg/__init__.py` picks between them and turns
+//! Python's types (paths, numpy arrays, `paths="auto"`) into their arguments.
+//!
+//! The work runs with the GIL released, on the built-in models, loaded once per process.
+//! Errors become Python exceptions carrying the library's message: an image that cannot be read
+//! or a budget out of range is a `ValueError`, a file that cannot be opened or written an
+//! `OSError` (`FileNotFoundError` when it does not exist), named in the message.
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use burn::tensor::Device;
+use common::decode::{self, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
+use common::write::write_atomic;
+use infer::finetune::{Budget, FinetuneOptions};
+use infer::{AutoBudget, Job, Models, PathBudget};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+
+/// The built-in E_c and E_r on the CPU, loaded by the first call (about a second), or why they
+/// could not be.
+fn models() -> PyResult<&'static (Models, Device)> {
+    static MODELS: OnceLock<Result<(Models, Device), String>> = OnceLock::new();
+    let loaded = MODELS.get_or_init(|| {
+        let device = Device::flex();
+        Models::bundled(true, &device).map(|models| (models, device)).map_err(|err| err.to_string())
+    });
+    loaded.as_ref().map_err(|message| PyRuntimeError::new_err(format!("the models: {message}")))
+}
+
+/// What every entry point is asked, beside its input.
+struct Request {
+    /// A number of paths, or `None` for `paths="auto"`.
+    paths: Option<usize>,
+    /// SuperSVG-F for this many seconds after B.
+    finetune_secs: Option<f64>,
+    /// Long side of the working image.
+    size: u32,
+    /// Where to write the SVG too.
+    out: Option<PathBuf>,
+}
+
+impl Request {
+    fn new(
+        paths: Option<usize>,
+        finetune_secs: Option<f64>,
+        size: u32,
+        out: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        if !decode::WORKING_SIZES.contains(&size) {
+            let (low, high) = (decode::WORKING_SIZES.start(), decode::WORKING_SIZES.end());
+            return Err(PyValueError::new_err(format!(
+                "size {size} is not a working size: {low} to {high} pixels"
+            )));
+        }
+        if let Some(seconds) = finetune_secs.filter(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(PyValueError::new_err(format!(
+                "finetune_secs {seconds} is not a positive number of seconds"
+            )));
+        }
+        Ok(Self { paths, finetune_secs, size, out })
+    }
+
+    fn load_options(&self) -> LoadOptions {
+        LoadOptions { long_side: self.size, ..LoadOptions::default() }
+    }
+
+    fn job(&self) -> Job {
+        Job {
+            paths: self.paths.map_or(PathBudget::Auto(AutoBudget::default()), PathBudget::Count),
+            finetune: self.finetune_secs.map(|seconds| FinetuneOptions {
+                budget: Budget::Seconds(seconds),
+                ..FinetuneOptions::default()
+            }),
+            ..Job::default()
+        }
+    }
+
+    /// Vectorizes the image `read` gives, with the GIL released; writes `out` if asked. Returns
+    /// the SVG and the warnings the job gave (the caller shows them as Python warnings).
+    fn run(
+        &self,
+        py: Python<'_>,
+        read: impl FnOnce(&LoadOptions) -> Result<Loaded, DecodeError> + Send,
+    ) -> PyResult<(String, Vec<String>)> {
+        let (models, device) = models()?;
+        let job = self.job();
+        let options = self.load_options();
+        let (outcome, interrupted) = py.detach(|| {
+            let loaded = read(&options).map_err(decode_error)?;
+            let mut interrupted = None;
+            // Fine-tuning runs for seconds: let Ctrl-C stop it between steps, as it stops Python.
+            let mut on_step = |_: &infer::finetune::Progress| match Python::attach(|py| py.check_signals()) {
+                Ok(()) => ControlFlow::Continue(()),
+                Err(err) => {
+                    interrupted = Some(err);
+                    ControlFlow::Break(())
+                }
+            };
+            let outcome = infer::run_with_progress(models, &loaded, &job, device, &mut on_step)
+                .map_err(|err| PyValueError::new_err(err.to_string()))?;
+            PyResult::Ok((outcome, interrupted))
+        })?;
+        if let Some(err) = interrupted {
+            return Err(err);
+        }
+        if let Some(path) = &self.out {
+            py.detach(|| write_atomic(path, outcome.svg.as_bytes())).map_err(|err| os_error(path, err))?;
+        }
+        let warnings = outcome.warnings.iter().map(ToString::to_string).collect();
+        Ok((outcome.svg, warnings))
+    }
+}
+
+/// A decoding error as Python says it: `OSError` (its subclass by kind) when the file cannot be
+/// read, `ValueError` when what was read is no usable image.
+fn decode_error(err: DecodeError) -> PyErr {
+    match err.problem {
+        DecodeProblem::Io(io) => os_error(Path::new(&err.input), io),
+        _ => PyValueError::new_err(err.to_string()),
+    }
+}
+
+/// `err` about `path` as Python's `OSError` of the same kind, the path in its message.
+fn os_error(path: &Path, err: std::io::Error) -> PyErr {
+    std::io::Error::new(err.kind(), format!("{}: {err}", path.display())).into()
+}
+
+/// A budget from Python: a number of paths, or `None` for an automatic one.
+type Paths = Option<usize>;
+
+/// Vectorizes the image file at `path`. Returns `(svg, warnings)`.
+#[pyfunction]
+#[pyo3(signature = (path, paths, finetune_secs, size, out))]
+fn from_file(
+    py: Python<'_>,
+    path: PathBuf,
+    paths: Paths,
+    finetune_secs: Option<f64>,
+    size: u32,
+    out: Option<PathBuf>,
+) -> PyResult<(String, Vec<String>)> {
+    Request::new(paths, finetune_secs, size, out)?.run(py, |options| decode::open(&path, options))
+}
+
+/// Vectorizes an image file's bytes (any format the files may have). Returns `(svg, warnings)`.
+#[pyfunction]
+#[pyo3(signature = (data, paths, finetune_secs, size, out))]
+fn from_bytes(
+    py: Python<'_>,
+    data: &[u8],
+    paths: Paths,
+    finetune_secs: Option<f64>,
+    size: u32,
+    out: Option<PathBuf>,
+) -> PyResult<(String, Vec<String>)> {
+    Request::new(paths, finetune_secs, size, out)?.run(py, |options| decode::decode(data, "<bytes>", options))
+}
+
+/// Vectorizes `height` rows of `width` pixels of `channels` (1, 3 or 4) bytes each, in C order.
+/// Returns `(svg, warnings)`.
+#[pyfunction]
+#[pyo3(signature = (data, width, height, channels, paths, finetune_secs, size, out))]
+#[allow(clippy::too_many_arguments)] // one per keyword of `supersvg.vectorize`
+fn from_pixels(
+    py: Python<'_>,
+    data: &[u8],
+    width: u32,
+    height: u32,
+    channels: usize,
+    paths: Paths,
+    finetune_secs: Option<f64>,
+    size: u32,
+    out: Option<PathBuf>,
+) -> PyResult<(String, Vec<String>)> {
+    let layout = PixelLayout::from_channels(channels)
+        .ok_or_else(|| PyValueError::new_err(format!("{channels} channels: an array needs 1, 3 or 4")))?;
+    Request::new(paths, finetune_secs, size, out)?
+        .run(py, |options| decode::from_pixels(data, (width, height), layout, "<array>", options))
+}
+
+/// The module Python imports as `supersvg._native`.
+#[pymodule]
+fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_function(wrap_pyfunction!(from_file, module)?)?;
+    module.add_function(wrap_pyfunction!(from_bytes, module)?)?;
+    module.add_function(wrap_pyfunction!(from_pixels, module)?)?;
+    module.add("MAX_PATHS", infer::MAX_PATHS)?;
+    Ok(())
+}

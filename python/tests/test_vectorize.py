@@ -1,0 +1,144 @@
+"""The package as a user calls it: paths, bytes, arrays, automatic budgets, bad input."""
+
+import os
+import pathlib
+import re
+import threading
+import time
+
+import numpy
+import pytest
+
+import supersvg
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+EXAMPLE = ROOT / "assets" / "astronaut.jpg"
+
+
+def paths_in(svg):
+    return len(re.findall(r"<path\b", svg))
+
+
+def flat_art(height=48, width=64):
+    """A red disc on blue with a transparent corner: RGBA uint8."""
+    y, x = numpy.mgrid[0:height, 0:width]
+    pixels = numpy.zeros((height, width, 4), numpy.uint8)
+    pixels[..., 2] = 200
+    pixels[..., 3] = 255
+    disc = (x - 40) ** 2 + (y - 24) ** 2 < 15**2
+    pixels[disc] = [220, 30, 30, 255]
+    pixels[:10, :10, 3] = 0
+    return pixels
+
+
+def test_a_file_path_gives_an_svg_of_the_budget_and_the_files_size():
+    svg = supersvg.vectorize(EXAMPLE, paths=40, size=128)
+    assert svg.startswith("<svg") or svg.startswith("<?xml")
+    assert 2 <= paths_in(svg) <= 40
+    assert 'width="512"' in svg and 'height="512"' in svg  # the file's size, not the working one
+    assert supersvg.vectorize(str(EXAMPLE), paths=40, size=128) == svg  # str and Path alike
+
+
+def test_bytes_draw_what_their_file_draws(tmp_path):
+    data = EXAMPLE.read_bytes()
+    out = tmp_path / "astronaut.svg"
+    svg = supersvg.vectorize(data, paths=40, size=128, out=out)
+    assert svg == supersvg.vectorize(EXAMPLE, paths=40, size=128)
+    assert out.read_text() == svg
+    assert os.listdir(tmp_path) == ["astronaut.svg"]  # no temporary left beside it
+
+
+def test_arrays_rgb_rgba_and_grey_are_drawn_with_their_colours():
+    rgba = flat_art()
+    svg = supersvg.vectorize(rgba, paths=8)
+    assert 'width="64"' in svg and 'height="48"' in svg
+    # The disc's red and the blue are in the drawing; the transparent corner is drawn over white.
+    fills = set(re.findall(r'fill="(#[0-9a-f]{6})"', svg.lower()))
+    assert any(int(f[1:3], 16) > 180 and int(f[5:7], 16) < 80 for f in fills), fills
+    assert any(int(f[5:7], 16) > 150 and int(f[1:3], 16) < 60 for f in fills), fills
+    rgb = numpy.ascontiguousarray(rgba[..., :3])
+    assert paths_in(supersvg.vectorize(rgb, paths=8)) >= 2
+    grey = rgba[..., 0]
+    assert paths_in(supersvg.vectorize(grey[:, ::-1], paths=8)) >= 2  # not C-contiguous: copied
+
+
+def test_auto_budget_draws_flat_art_with_few_paths():
+    svg = supersvg.vectorize(flat_art(), paths="auto")
+    assert 2 <= paths_in(svg) < 40
+
+
+def test_finetune_secs_runs_superSVG_F():
+    started = time.monotonic()
+    base = supersvg.vectorize(EXAMPLE, paths=20, size=64)
+    tuned = supersvg.vectorize(EXAMPLE, paths=20, size=64, finetune_secs=0.5)
+    assert time.monotonic() - started >= 0.5
+    assert tuned != base
+
+
+def test_bad_input_is_a_python_exception_naming_the_problem(tmp_path):
+    with pytest.raises(ValueError, match="not an image in a known format"):
+        supersvg.vectorize(b"plain text, not an image")
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(EXAMPLE.read_bytes()[:300])
+    with pytest.raises(ValueError, match="broken.png"):
+        supersvg.vectorize(broken)
+    with pytest.raises(FileNotFoundError, match="missing.png"):
+        supersvg.vectorize(tmp_path / "missing.png")
+    with pytest.raises(ValueError, match="out of range"):
+        supersvg.vectorize(EXAMPLE, paths=1)
+    with pytest.raises(ValueError, match="'many'"):
+        supersvg.vectorize(EXAMPLE, paths="many")
+    with pytest.raises(ValueError, match="float64"):
+        supersvg.vectorize(numpy.zeros((8, 8, 3)))
+    with pytest.raises(ValueError, match="shape"):
+        supersvg.vectorize(numpy.zeros((8, 8, 2), numpy.uint8))
+    with pytest.raises(ValueError, match="empty"):
+        supersvg.vectorize(numpy.zeros((0, 8, 3), numpy.uint8))
+    with pytest.raises(ValueError, match="size 4"):
+        supersvg.vectorize(EXAMPLE, size=4)
+    with pytest.raises(TypeError, match="int"):
+        supersvg.vectorize(42)
+    with pytest.raises(OSError, match="no-such-folder"):
+        supersvg.vectorize(flat_art(), paths=4, out=tmp_path / "no-such-folder" / "out.svg")
+    assert not (tmp_path / "no-such-folder").exists()
+
+
+def test_too_few_paths_is_said_as_a_warning():
+    flat = numpy.full((32, 32, 3), 120, numpy.uint8)
+    with pytest.warns(UserWarning, match="of 50 paths drawn"):
+        svg = supersvg.vectorize(flat, paths=50)
+    assert paths_in(svg) == 1
+
+
+def test_the_gil_is_released_while_it_works():
+    ticks = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.005)
+
+    supersvg.vectorize(EXAMPLE, paths=20, size=64)  # models loaded before timing
+    counter = threading.Thread(target=count)
+    counter.start()
+    started = time.monotonic()
+    supersvg.vectorize(EXAMPLE, paths=300, size=256)
+    took = time.monotonic() - started
+    done.set()
+    counter.join()
+    during = [t for t in ticks if started < t < started + took]
+    # Held, the other thread would not run at all until the call returned.
+    assert took > 0.1 and len(during) >= took / 0.005 / 4, (took, len(during))
+
+
+def test_ctrl_c_stops_a_long_fine_tuning():
+    import signal
+
+    supersvg.vectorize(EXAMPLE, paths=20, size=64)  # models loaded before timing
+    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+    started = time.monotonic()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        supersvg.vectorize(EXAMPLE, paths=50, size=128, finetune_secs=60)
+    assert time.monotonic() - started < 20
