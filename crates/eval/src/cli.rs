@@ -1,7 +1,7 @@
-//! What the evaluation programs share: reading a folder of images, loading the models, and
-//! turning a run's result into an exit code.
+//! What the evaluation programs share: loading the models and turning a run's result into an
+//! exit code (a folder's images are listed by [`common::folder::files_in`]).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 
 use burn::tensor::Device;
@@ -16,27 +16,6 @@ pub fn finish(result: anyhow::Result<()>) -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-/// A folder of images that could not be listed.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: {source}", dir.display())]
-pub struct ListError {
-    /// The folder.
-    pub dir: PathBuf,
-    /// Why.
-    pub source: std::io::Error,
-}
-
-/// The files directly in `dir`, sorted (whether they are images is for the decoder to say).
-pub fn files_in(dir: &Path) -> Result<Vec<PathBuf>, ListError> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|source| ListError { dir: dir.to_path_buf(), source })?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
-        .filter(|path| path.is_file())
-        .collect();
-    files.sort();
-    Ok(files)
 }
 
 /// Both models, from the given checkpoints or the bundled ones ([`Models::identities`] says

@@ -58,8 +58,8 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
 }
 
 /// The report compares sizes as well as quality: an SVG KB column (a dash for the pixel-exact
-/// mosaic, which is no SVG) and a section where each method picks its own budget, SuperSVG-B
-/// with `--paths auto`.
+/// mosaic, which is no SVG), a row without E_r, and a section where each method picks its own
+/// budget, SuperSVG-B with `--paths auto`.
 #[test]
 fn report_has_svg_sizes_and_the_auto_budget() {
     let dir = std::env::temp_dir().join(format!("supersvg-eval-report-{}", std::process::id()));
@@ -69,7 +69,7 @@ fn report_has_svg_sizes_and_the_auto_budget() {
     let out = dir.join("report.md");
     let result = Command::new(EVAL)
         .arg(&dir)
-        .args(["--out", out.to_str().unwrap(), "--paths", "16", "--size", "48", "--peers", "slic"])
+        .args(["--out", out.to_str().unwrap(), "--paths", "16", "--size", "48", "--peers", "slic,no-refine"])
         .output()
         .unwrap();
     assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
@@ -83,6 +83,7 @@ fn report_has_svg_sizes_and_the_auto_budget() {
     };
     assert!(row("SuperSVG-B (ours)").parse::<f64>().unwrap() > 0.0, "{report}");
     assert!(row("SuperSVG-B (ours), --paths auto").parse::<f64>().unwrap() > 0.0, "{report}");
+    assert!(row("SuperSVG-B without E_r (--no-refine)").parse::<f64>().unwrap() > 0.0, "{report}");
     assert_eq!(row("SLIC regions, mean colour"), "—", "{report}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -25,6 +25,7 @@ pub mod segmentation;
 
 pub use models::Models;
 pub use pipeline::{
-    Job, MAX_PATHS, Outcome, PathBudget, Report, Seconds, VectorizeError, Warning, run, run_with_progress,
+    BudgetParseError, Job, MAX_PATHS, Outcome, PathBudget, Report, Seconds, VectorizeError, Warning, run,
+    run_with_progress,
 };
 pub use segmentation::AutoBudget;

@@ -37,6 +37,34 @@ pub enum PathBudget {
     Auto(AutoBudget),
 }
 
+impl std::str::FromStr for PathBudget {
+    type Err = BudgetParseError;
+
+    /// `auto`, or a number of paths from 2 to [`MAX_PATHS`] (what `--paths` takes).
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text.parse::<usize>() {
+            _ if text == "auto" => Ok(PathBudget::Auto(AutoBudget::default())),
+            Ok(paths) if (2..=MAX_PATHS).contains(&paths) => Ok(PathBudget::Count(paths)),
+            _ => Err(BudgetParseError(text.to_string())),
+        }
+    }
+}
+
+impl std::fmt::Display for PathBudget {
+    /// As it is written on the command line: `500`, `auto`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PathBudget::Count(paths) => write!(f, "{paths}"),
+            PathBudget::Auto(_) => f.write_str("auto"),
+        }
+    }
+}
+
+/// Text that is no [`PathBudget`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0:?} is not a path budget: a number from 2 to {MAX_PATHS}, or auto")]
+pub struct BudgetParseError(pub String);
+
 /// Everything that decides how an image becomes an SVG.
 #[derive(Clone, Debug)]
 pub struct Job {
@@ -359,5 +387,22 @@ impl Outcome {
         let mut outcome = export(scene, image, job, drawn, warnings)?;
         outcome.report.finetune_steps = Some(steps);
         Ok(outcome)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn budgets_read_and_write_as_on_the_command_line() {
+        assert_eq!("500".parse::<PathBudget>(), Ok(PathBudget::Count(500)));
+        assert_eq!("auto".parse::<PathBudget>(), Ok(PathBudget::Auto(AutoBudget::default())));
+        for bad in ["1", "20001", "-3", "Auto", ""] {
+            assert_eq!(bad.parse::<PathBudget>(), Err(BudgetParseError(bad.to_string())), "{bad}");
+        }
+        for text in ["2", "20000", "auto"] {
+            assert_eq!(text.parse::<PathBudget>().unwrap().to_string(), text);
+        }
     }
 }

@@ -16,9 +16,10 @@ use std::process::ExitCode;
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use common::decode::load;
+use common::folder::files_in;
 use common::write::{create_temporary, write_atomic, write_png};
 use common::{WORKING_SIZES, mse, psnr, ssim};
-use eval::cli::{files_in, finish, load_models};
+use eval::cli::{finish, load_models};
 use eval::lpips::Lpips;
 use eval::peers::{
     PeerError, available, count_shapes, mean_color_superpixels, potrace_colors, render_svg, vtracer,
@@ -41,6 +42,8 @@ enum Peer {
     Slic,
     /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1 --no-refine` draws it.
     Fallback,
+    /// SuperSVG-B without E_r: as `infer --paths N --no-refine` draws it (what E_r adds).
+    NoRefine,
 }
 
 /// Dilation (pixels) of a region's mask before its paths' spill is measured: the margin the
@@ -63,7 +66,8 @@ struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
-    /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`): the files `infer` writes with the same settings.
+    /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`): the files `infer`
+    /// writes with the same settings.
     #[arg(long)]
     svgs: Option<PathBuf>,
     /// Coarse-model checkpoint (default: the bundled one).
@@ -79,7 +83,7 @@ struct Args {
     #[arg(long, default_value_t = 512, allow_hyphen_values = true)]
     size: u32,
     /// Peers, comma separated; empty for none.
-    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic,fallback")]
+    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic,fallback,no-refine")]
     peers: Vec<PeerArg>,
     /// Evaluate only the first N images.
     #[arg(long)]
@@ -117,6 +121,8 @@ enum Method {
     OursF,
     /// SuperSVG-B with `--paths auto`.
     OursAuto,
+    /// SuperSVG-B without E_r.
+    OursNoRefine,
     /// The fallback drawing alone.
     Fallback,
     /// vtracer with one knob searched to the budget.
@@ -136,6 +142,7 @@ impl Method {
             Method::OursB => "SuperSVG-B (ours)",
             Method::OursF => "SuperSVG-F (ours)",
             Method::OursAuto => "SuperSVG-B (ours), --paths auto",
+            Method::OursNoRefine => "SuperSVG-B without E_r (--no-refine)",
             Method::Fallback => "fallback alone (traced regions, mean colour)",
             Method::Vtracer => "vtracer",
             Method::VtracerDefault => "vtracer (default settings)",
@@ -221,8 +228,8 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     }
     let device = args.backend.device()?;
     let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
-    // The fallback row draws regions only: a region that lowers nothing is not drawn, and E_r
-    // would spend what it leaves.
+    // The fallback and no-refine rows draw without E_r (for the fallback: a region that lowers
+    // nothing is not drawn, and E_r would spend what it leaves), as `infer --no-refine` does.
     let regions_only =
         infer::Models { refine: None, identities: (models.identities.0.clone(), None), ..models.clone() };
     let scratch = std::env::temp_dir().join(format!("supersvg-eval-{}", std::process::id()));
@@ -313,6 +320,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                     (Method::OursAuto, _) => "auto".to_string(),
                     (Method::OursF, Table::Paths(n)) => format!("f-{n}"),
                     (Method::Fallback, Table::Paths(n)) => format!("fallback-{n}"),
+                    (Method::OursNoRefine, Table::Paths(n)) => format!("no-refine-{n}"),
                     (_, Table::Paths(n)) => format!("b-{n}"),
                     (_, Table::Own) => "own".to_string(),
                 };
@@ -341,10 +349,15 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 record(table, Method::OursF, drawn, seconds, anatomy, &mut tiles);
             }
             if wanted(Peer::Fallback) {
-                let alone = Job { regions: Some(budget - 1), ..job };
+                let alone = Job { regions: Some(budget - 1), ..job.clone() };
                 let outcome = run(&regions_only, &loaded, &alone, &device)?;
                 let (drawn, seconds, anatomy) = ours(table, Method::Fallback, &outcome);
                 record(table, Method::Fallback, drawn, seconds, anatomy, &mut tiles);
+            }
+            if wanted(Peer::NoRefine) {
+                let outcome = run(&regions_only, &loaded, &job, &device)?;
+                let (drawn, seconds, anatomy) = ours(table, Method::OursNoRefine, &outcome);
+                record(table, Method::OursNoRefine, drawn, seconds, anatomy, &mut tiles);
             }
             if use_vtracer {
                 let traced = vtracer(&png, Some(budget), &scratch);

@@ -18,7 +18,7 @@ use common::{Loaded, WORKING_SIZES};
 use image::{Rgb32FImage, RgbImage};
 use infer::finetune::{Budget, FinetuneOptions, Progress};
 use infer::models::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, bundled};
-use infer::{AutoBudget, Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
+use infer::{Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
 use raster::{Backend, MAX_DECIMALS, SvgOptions};
 use serde::Serialize;
 
@@ -42,7 +42,7 @@ struct Args {
     /// error), or `auto`: per image, double from 8 paths until the drawing reaches 30 dB PSNR,
     /// and keep the fewest past which more paths gain less than 0.25 dB a doubling, at most 2000
     /// (flat art gets few paths, photos many).
-    #[arg(long, default_value = "500", value_parser = path_budget)]
+    #[arg(long, default_value = "500", value_parser = str::parse::<PathBudget>)]
     paths: PathBudget,
     /// Coarse-model checkpoint (default: the bundled one, built into this program, or
     /// coarse.ckpt in $SUPERSVG_MODELS when that is set).
@@ -139,14 +139,6 @@ fn working_size(text: &str) -> Result<u32, String> {
             WORKING_SIZES.start(),
             WORKING_SIZES.end()
         )),
-    }
-}
-
-fn path_budget(text: &str) -> Result<PathBudget, String> {
-    match text.parse::<usize>() {
-        _ if text == "auto" => Ok(PathBudget::Auto(AutoBudget::default())),
-        Ok(paths) if (2..=MAX_PATHS).contains(&paths) => Ok(PathBudget::Count(paths)),
-        _ => Err(format!("{text:?} is not a path budget: a number from 2 to {MAX_PATHS}, or auto")),
     }
 }
 
