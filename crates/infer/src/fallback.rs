@@ -88,8 +88,8 @@ fn traced(segmentation: &Segmentation, order: &[u32]) -> Vec<Option<Shape>> {
     order.par_iter().map(|&r| region_polygon(segmentation, r, &rank).map(Shape::from)).collect()
 }
 
-/// The fallback drawing of an image's segmentation: traced, rendered and scored once (choosing
-/// a segmentation), then drawn (the coarse stage starts from it, or takes its rendering as it
+/// The fallback drawing of an image's segmentation: traced, rendered and scored once (for the
+/// chosen segmentation), then drawn (the coarse stage starts from it, or takes its rendering as it
 /// is when E_c draws nothing). A region's polygon is drawn only if it lowers the error of its
 /// own pixels over what is under them (the background and the regions before it): on a flat
 /// picture, whose every region has the background's colour, the drawing is the background alone.

@@ -27,7 +27,7 @@ pub fn max_regions(width: u32, height: u32) -> usize {
 /// art rewards. On the 31 emoji of data/eval at the stored operating point, one extra candidate
 /// at 1/2 or 1/3 of 30 gains about 1 dB at 500 paths, these three 1.4 / 1.0 dB at 500 / 2000
 /// (docs/operating-point.md, measured when regions were fitted with one path); 1/6 alone gained
-/// 0.3. Each candidate costs one SLIC, one tracing and one rendering.
+/// 0.3. Each candidate costs one SLIC (and its merging); only the winner is traced and rendered.
 const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
 
 /// The candidate of [`choose_segmentation`] whose regions take any shape: SLIC for this many
@@ -64,7 +64,8 @@ pub struct Segmented {
 /// `image` split into `regions` superpixels: of the candidates — merged freely
 /// ([`FREE_OVERSEGMENT`]; `free` when the caller already cut it, as the automatic budget does),
 /// merged by colour as `point` makes them, plain SLIC at several compactnesses — the one whose
-/// fallback drawing draws it best (least squared error).
+/// regions, each filled with its mean colour, draw it best (least squared error), with its
+/// fallback drawing (the only candidate traced and rendered).
 ///
 /// An image longer than [`CHOICE_SIDE`] has the candidates compared on a copy of that size
 /// (when the copy still has [`CHOICE_PIXELS_PER_REGION`] pixels a region), and only the winner
@@ -114,14 +115,23 @@ fn best_candidate(
         Some(free) => free,
         None => segment(image, regions, &free_options(compactness))?,
     };
-    let mut best = (score(image, free), None);
+    let mut best = (flat_error(image, &free), free, None);
     for options in shaped_candidates(point, compactness) {
-        let candidate = score(image, segment(image, regions, &options)?);
-        if candidate.fallback.error < best.0.fallback.error {
-            best = (candidate, Some(options));
+        let candidate = segment(image, regions, &options)?;
+        let error = flat_error(image, &candidate);
+        if error < best.0 {
+            best = (error, candidate, Some(options));
         }
     }
-    Ok(best)
+    Ok((score(image, best.1), best.2))
+}
+
+/// The squared error of `segmentation`'s regions each filled with its mean colour: how
+/// [`best_candidate`] ranks candidates. The fallback drawing differs from it only along region
+/// boundaries (staircases cut, 0.1–0.3 dB), so it ranks them as tracing and rendering each
+/// would, at the cost of one pass over the pixels.
+fn flat_error(image: &Rgb32FImage, segmentation: &Segmentation) -> f64 {
+    segmentation.flat_errors(image).iter().sum()
 }
 
 /// `segmentation` with its fallback drawing.
@@ -293,10 +303,14 @@ mod tests {
             2 + PLAIN_COMPACTNESS.len(),
             "the free and the merged candidates, then the plain ones"
         );
-        let errors: Vec<f64> = candidates
-            .iter()
-            .map(|options| FallbackDrawing::new(&image, &segment(&image, 24, options).unwrap()).error)
-            .collect();
+        let segmentations: Vec<Segmentation> =
+            candidates.iter().map(|options| segment(&image, 24, options).unwrap()).collect();
+        // The rule: the least flat-fill error.
+        let chosen_flat = flat_error(&image, &chosen.segmentation);
+        assert!(segmentations.iter().all(|s| chosen_flat <= flat_error(&image, s)));
+        // What the rule stands for: the traced drawing that draws best (every candidate drawn).
+        let errors: Vec<f64> =
+            segmentations.iter().map(|segmentation| FallbackDrawing::new(&image, segmentation).error).collect();
         for (options, error) in candidates.iter().zip(&errors) {
             assert!(
                 chosen.fallback.error <= *error,
