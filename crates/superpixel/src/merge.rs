@@ -66,7 +66,7 @@ impl Hierarchy {
     pub fn new(image: &Rgb32FImage, base: Segmentation) -> Self {
         assert_eq!(image.dimensions(), (base.width, base.height), "image and segmentation differ in size");
         let mut merging = Merging::new(&base, 0.0);
-        let mut errors = vec![base.flat_errors(image).iter().sum::<f64>()];
+        let mut errors = vec![base.flat_error(image)];
         let mut merges = Vec::with_capacity(base.regions.len().saturating_sub(1));
         while let Some((kept, merged, cost)) = merging.merge_cheapest() {
             merges.push((kept, merged));
@@ -163,19 +163,12 @@ struct Candidate {
     b: u32,
 }
 
-impl Candidate {
-    /// The pair, lower label first: a merge is the same whichever of its roots queued it.
-    fn pair(&self) -> (u32, u32) {
-        (self.a.min(self.b), self.a.max(self.b))
-    }
-}
-
 impl Eq for Candidate {}
 
 impl Ord for Candidate {
-    /// Reversed on cost (the queue is a max-heap), ties broken by the lower pair of labels.
+    /// [`merge_order`] reversed: the queue is a max-heap.
     fn cmp(&self, other: &Self) -> Ordering {
-        other.cost.total_cmp(&self.cost).then_with(|| other.pair().cmp(&self.pair()))
+        merge_order((other.cost, other.a, other.b), (self.cost, self.a, self.b))
     }
 }
 
@@ -390,12 +383,16 @@ impl Merging {
     }
 }
 
-/// Whether merge `(cost, a, b)` comes before `other` in the queue's order (cheaper, ties to the
-/// lower pair of labels); everything comes before `None`.
-fn precedes((cost, a, b): (f64, u32, u32), other: Option<(f64, u32, u32)>) -> bool {
-    let Some((other_cost, c, d)) = other else { return true };
+/// The order merges `(cost, root, partner)` are made in: cheaper first, ties to the lower pair
+/// of labels (a merge is the same whichever of its roots queued it).
+fn merge_order((cost, a, b): (f64, u32, u32), (other_cost, c, d): (f64, u32, u32)) -> Ordering {
     let pair = |x: u32, y: u32| (x.min(y), x.max(y));
-    cost.total_cmp(&other_cost).then_with(|| pair(a, b).cmp(&pair(c, d))).is_lt()
+    cost.total_cmp(&other_cost).then_with(|| pair(a, b).cmp(&pair(c, d)))
+}
+
+/// Whether `merge` comes before `other` in [`merge_order`]; everything comes before `None`.
+fn precedes(merge: (f64, u32, u32), other: Option<(f64, u32, u32)>) -> bool {
+    other.is_none_or(|other| merge_order(merge, other).is_lt())
 }
 
 #[cfg(test)]

@@ -92,6 +92,16 @@ impl Segmentation {
         self.labels[(y * self.width + x) as usize]
     }
 
+    /// The squared RGB error of filling every region with its mean colour (the sum of
+    /// [`Segmentation::flat_errors`]): how well the regions alone can draw the image, without
+    /// tracing or rendering them. `image` is the one segmented.
+    ///
+    /// # Panics
+    /// If `image` is not of the segmentation's size.
+    pub fn flat_error(&self, image: &Rgb32FImage) -> f64 {
+        self.flat_errors(image).iter().sum()
+    }
+
     /// Per region, the squared RGB error of filling it with its mean colour (the sum over its
     /// pixels of ‖pixel − mean‖²): what a region drawn flat leaves to draw. `image` is the
     /// one segmented.
