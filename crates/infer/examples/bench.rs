@@ -2,7 +2,7 @@
 //! it beside vtracer sees, stage by stage.
 //!
 //! `cargo run --release -p infer --example bench -- DIR [--paths 500,2000,auto] [--size 512]
-//!  [--no-refine]`
+//!  [--no-refine] [--tolerance 0.5]`
 //!
 //! Each image is read and drawn once per budget with the bundled models on the CPU (flex), as
 //! `infer IMAGE --paths N` draws it. Prints a line per budget, then, last, one JSON line:
@@ -35,6 +35,10 @@ struct Args {
     /// Without E_r (the coarse stage and the fallback only).
     #[arg(long)]
     no_refine: bool,
+    /// Regions as shared boundaries fitted with curves within this many pixels (`infer
+    /// --tolerance`); by default traced polygons.
+    #[arg(long)]
+    tolerance: Option<f32>,
 }
 
 /// The median of `values` (the mean of the middle two for an even count).
@@ -60,7 +64,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mut budgets = Vec::new();
     for &paths in &args.paths {
-        let job = Job { paths, ..Job::default() };
+        let job = Job { paths, tolerance: args.tolerance, ..Job::default() };
         let mut runs: Vec<(f64, Report)> = Vec::new();
         for path in &images {
             let started = Instant::now();

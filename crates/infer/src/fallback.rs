@@ -1,14 +1,16 @@
 //! The simplest drawing of an image split into superpixels: one path under everything, then
-//! every region's outline, traced along its pixel edges with its staircases cut, in its mean
-//! colour: the superpixels as one polygon each.
+//! every region in its mean colour: by default its outline traced along its pixel edges with
+//! its staircases cut, grown a pixel under the regions painted after it; with a tolerance,
+//! drawn along the boundaries it shares with its neighbours (traced once, fitted with lines and
+//! cubics within the tolerance).
 //!
 //! Every result starts from it, so no pixel is left uncovered whatever the later stages keep,
 //! and a region's learned paths are kept only where they beat it.
 
 use image::Rgb32FImage;
-use raster::{Path, Polygon, Shape, fit_outline, paint_exact};
+use raster::{Contour, Outline, Path, Segment, Shape, fit_curve, fit_outline, paint_exact};
 use rayon::prelude::*;
-use superpixel::Segmentation;
+use superpixel::{PlanarMap, Segmentation};
 use tiny_skia::Pixmap;
 
 use crate::scene::{Origin, Placed, Scene, Scope};
@@ -44,26 +46,94 @@ pub fn background(image: &Rgb32FImage, above: &[Shape]) -> Path {
     Path::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], color, 1.0)
 }
 
-/// Region `region`'s outline traced along its pixel edges, staircases cut and grown under the
-/// regions painted after it ([`Segmentation::outline`]; the image's unit square), in its
-/// mean colour; `None` for a region without pixels. `rank[r]` is region `r`'s place in
-/// [`painter_order`]. Painted in that order, the regions' polygons draw the segmentation with
-/// its staircases cut, without seams; a region's holes are regions painted after it.
-fn region_polygon(segmentation: &Segmentation, region: u32, rank: &[usize]) -> Option<Polygon> {
-    let (width, height) = (segmentation.width as f32, segmentation.height as f32);
-    let later = |other: u32| rank[other as usize] > rank[region as usize];
-    let corners =
-        segmentation.outline(region, later).into_iter().map(|[x, y]| [x / width, y / height]).collect();
-    Polygon::new(corners, segmentation.regions[region as usize].mean_color, 1.0)
+/// A tolerance for [`FallbackDrawing::new`] (pixels), for tests: half a pixel, the most a
+/// staircase cut moves a boundary.
+#[cfg(test)]
+pub(crate) const TOLERANCE: f32 = 0.5;
+
+/// Every boundary of a segmentation, fitted once, in the image's unit square: what the regions'
+/// outlines are assembled from, so neighbours share the same curves.
+struct Boundaries {
+    map: PlanarMap,
+    /// Per chain of `map`: where its curve starts and its pieces.
+    curves: Vec<([f32; 2], Vec<Segment>)>,
 }
 
-/// `polygon` (unit square of a `width × height` canvas) as one path: its outline fitted with
-/// four cubics, grown by [`GROW`] pixels. What fine-tuning, which moves paths, starts from;
+impl Boundaries {
+    /// The chains of `segmentation`, each fitted with lines and cubics within `tolerance`
+    /// pixels ([`fit_curve`]; 0: the traced lines as they are), in parallel.
+    fn new(segmentation: &Segmentation, tolerance: f32) -> Self {
+        let map = PlanarMap::new(segmentation);
+        let (width, height) = (segmentation.width as f32, segmentation.height as f32);
+        let unit = |[x, y]: [f32; 2]| [x / width, y / height];
+        let curves = map
+            .chains()
+            .par_iter()
+            .map(|chain| {
+                let (start, segments) = fit_curve(&chain.points, chain.closed, tolerance);
+                (unit(start), segments.iter().map(|s| s.map(unit)).collect())
+            })
+            .collect();
+        Self { map, curves }
+    }
+
+    /// The outline of the set `members`, filled with `color`: its boundary's chains, each
+    /// curve as fitted (backwards where the set lies on its other side).
+    fn outline(&self, members: &[u32], color: [f32; 3]) -> Option<Outline> {
+        let contours = self.map.boundary(members).into_iter().map(|chains| {
+            let mut contour = Contour { start: [0.0; 2], segments: Vec::new() };
+            for (index, directed) in chains.iter().enumerate() {
+                let (start, segments) = &self.curves[directed.chain as usize];
+                let begins =
+                    if directed.reversed { segments.last().map_or(*start, Segment::end) } else { *start };
+                if index == 0 {
+                    contour.start = begins;
+                }
+                if directed.reversed {
+                    let starts = std::iter::once(*start).chain(segments.iter().map(Segment::end));
+                    let pieces: Vec<Segment> =
+                        segments.iter().zip(starts).map(|(segment, from)| segment.reversed(from)).collect();
+                    contour.segments.extend(pieces.into_iter().rev());
+                } else {
+                    contour.segments.extend(segments.iter().copied());
+                }
+            }
+            contour
+        });
+        Outline::new(contours.collect(), color, 1.0)
+    }
+}
+
+/// Region `region` in its mean colour, drawn with the neighbours painted after it (`rank[r]` is
+/// region `r`'s place in [`painter_order`]): the outline of their union, assembled from the
+/// shared boundary curves. Painted in that order, every boundary shows as the curve the later
+/// region draws it with, over the earlier one's colour, never over what lies under both (two
+/// anti-aliased edges meeting on one line would let that show through: coverages of ½ and ½
+/// leave ¼); a region's holes are regions painted after it. `None` for a region without pixels.
+fn region_outline(
+    segmentation: &Segmentation,
+    boundaries: &Boundaries,
+    region: u32,
+    rank: &[usize],
+) -> Option<Outline> {
+    let mut members: Vec<u32> = boundaries
+        .map
+        .neighbours(region)
+        .into_iter()
+        .filter(|&other| rank[other as usize] > rank[region as usize])
+        .collect();
+    members.push(region);
+    boundaries.outline(&members, segmentation.regions[region as usize].mean_color)
+}
+
+/// `outline` (unit square of a `width × height` canvas) as one path: its largest contour fitted
+/// with four cubics, grown by [`GROW`] pixels. What fine-tuning, which moves paths, starts from;
 /// `None` if the outline cannot be fitted.
-pub fn fitted_path(polygon: &Polygon, (width, height): (u32, u32)) -> Option<Path> {
+pub fn fitted_path(outline: &Outline, (width, height): (u32, u32)) -> Option<Path> {
     let (width, height) = (width as f32, height as f32);
-    let outline: Vec<[f32; 2]> = polygon.corners().iter().map(|[x, y]| [x * width, y * height]).collect();
-    let path = fit_outline(&outline, GROW, polygon.color, polygon.alpha)?;
+    let points: Vec<[f32; 2]> =
+        outline.largest_contour(8).iter().map(|[x, y]| [x * width, y * height]).collect();
+    let path = fit_outline(&points, GROW, outline.color, outline.alpha)?;
     Some(path.map_points(|[x, y]| [x / width, y / height]))
 }
 
@@ -79,13 +149,34 @@ pub fn painter_order(segmentation: &Segmentation) -> Vec<u32> {
     order
 }
 
-/// Every region's polygon ([`region_polygon`]), traced in parallel, in painter's order `order`.
-fn traced(segmentation: &Segmentation, order: &[u32]) -> Vec<Option<Shape>> {
+/// Region `region`'s outline traced along its pixel edges, staircases cut and grown under the
+/// regions painted after it ([`Segmentation::outline`]; the image's unit square), in its mean
+/// colour; `None` for a region without pixels. Painted in painter's order, the regions'
+/// polygons draw the segmentation without seams; a region's holes are regions painted after it.
+fn region_polygon(segmentation: &Segmentation, region: u32, rank: &[usize]) -> Option<Outline> {
+    let (width, height) = (segmentation.width as f32, segmentation.height as f32);
+    let later = |other: u32| rank[other as usize] > rank[region as usize];
+    let corners: Vec<[f32; 2]> =
+        segmentation.outline(region, later).into_iter().map(|[x, y]| [x / width, y / height]).collect();
+    Outline::polygon(&corners, segmentation.regions[region as usize].mean_color, 1.0)
+}
+
+/// Every region's shape in painter's order `order`, in parallel: its traced polygon
+/// ([`region_polygon`]) without a tolerance, else its outline of shared boundaries fitted
+/// within `tolerance` pixels ([`region_outline`]).
+fn traced(segmentation: &Segmentation, order: &[u32], tolerance: Option<f32>) -> Vec<Option<Shape>> {
     let mut rank = vec![0; order.len()];
     for (place, &r) in order.iter().enumerate() {
         rank[r as usize] = place;
     }
-    order.par_iter().map(|&r| region_polygon(segmentation, r, &rank).map(Shape::from)).collect()
+    match tolerance {
+        None => order.par_iter().map(|&r| region_polygon(segmentation, r, &rank).map(Shape::from)).collect(),
+        Some(tolerance) => {
+            let boundaries = Boundaries::new(segmentation, tolerance);
+            let outline = |r: u32| region_outline(segmentation, &boundaries, r, &rank).map(Shape::from);
+            order.par_iter().map(|&r| outline(r)).collect()
+        }
+    }
 }
 
 /// The fallback drawing of an image's segmentation: traced, rendered and scored once (for the
@@ -109,11 +200,12 @@ pub struct FallbackDrawing {
 }
 
 impl FallbackDrawing {
-    /// Traces every region of `segmentation` (in parallel), fits the background of `image`
-    /// under them, renders the drawing and scores it.
-    pub fn new(image: &Rgb32FImage, segmentation: &Segmentation) -> Self {
+    /// Traces every region of `segmentation` (in parallel; with a `tolerance`, as shared
+    /// boundaries fitted within it, see [`traced`]), fits the background of `image` under them,
+    /// renders the drawing and scores it.
+    pub fn new(image: &Rgb32FImage, segmentation: &Segmentation, tolerance: Option<f32>) -> Self {
         let order = painter_order(segmentation);
-        let regions = traced(segmentation, &order);
+        let regions = traced(segmentation, &order, tolerance);
         let background = background(image, &regions.iter().flatten().cloned().collect::<Vec<_>>());
         let mut scene = Scene::new(image.clone(), segmentation.clone());
         scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background });
@@ -175,8 +267,12 @@ mod tests {
     fn away_from_boundaries_the_drawing_is_the_mosaic() {
         let image = wavy_image();
         let segmentation = slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap();
-        let drawn =
-            raster::render_exact(&FallbackDrawing::new(&image, &segmentation).paths(), 96, 64, [1.0; 3]);
+        let drawn = raster::render_exact(
+            &FallbackDrawing::new(&image, &segmentation, None).paths(),
+            96,
+            64,
+            [1.0; 3],
+        );
         let drawn = image::DynamicImage::ImageRgb8(drawn).to_rgb32f();
         let mut checked = 0;
         for (x, y, ours) in drawn.enumerate_pixels() {
@@ -205,31 +301,73 @@ mod tests {
         // failed to cover a pixel together, white would show through (39/255 at worst here
         // when regions stop at their cut edges instead of growing under later ones). What may
         // remain: a cut corner of a grown region inside a pixel the later one's cut also
-        // clips, an eighth of each: 1/64 ≈ 4/255.
+        // clips, an eighth of each: 1/64 ≈ 4/255. Shared curves, at any tolerance, leave none:
+        // the earlier region passes under the later one whole.
         let image = wavy_image();
         let mut segmentation = slic(&image, &SlicOptions { n_segments: 60, ..Default::default() }).unwrap();
         for region in &mut segmentation.regions {
             region.mean_color = [0.0; 3];
         }
-        let regions: Vec<Shape> =
-            traced(&segmentation, &painter_order(&segmentation)).into_iter().flatten().collect();
-        assert_eq!(regions.len(), segmentation.regions.len());
-        let drawn = raster::render_exact(&regions, 96, 64, [1.0; 3]);
-        let brightest = drawn.pixels().map(|p| p.0[0]).max().unwrap();
-        assert!(brightest <= 4, "a seam lets the canvas show through: {brightest}/255");
+        for (tolerance, most) in [(None, 4), (Some(0.0), 0), (Some(TOLERANCE), 0), (Some(2.0), 0)] {
+            let regions: Vec<Shape> = traced(&segmentation, &painter_order(&segmentation), tolerance)
+                .into_iter()
+                .flatten()
+                .collect();
+            assert_eq!(regions.len(), segmentation.regions.len());
+            let drawn = raster::render_exact(&regions, 96, 64, [1.0; 3]);
+            let brightest = drawn.pixels().map(|p| p.0[0]).max().unwrap();
+            assert!(brightest <= most, "{tolerance:?}: a seam lets the canvas show through: {brightest}/255");
+        }
+    }
+
+    #[test]
+    fn a_later_region_draws_its_boundary_with_the_shared_curve() {
+        let image = wavy_image();
+        let segmentation = slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap();
+        let order = painter_order(&segmentation);
+        let mut rank = vec![0; order.len()];
+        for (place, &r) in order.iter().enumerate() {
+            rank[r as usize] = place;
+        }
+        let boundaries = Boundaries::new(&segmentation, TOLERANCE);
+        let mut shared = 0;
+        for region in 0..segmentation.regions.len() as u32 {
+            let outline = region_outline(&segmentation, &boundaries, region, &rank).unwrap();
+            let pieces: Vec<Segment> = outline.contours().iter().flat_map(|c| c.segments.clone()).collect();
+            for &id in boundaries.map.chains_of(region) {
+                let chain = &boundaries.map.chains()[id as usize];
+                let other = if chain.right == region { chain.left } else { Some(chain.right) };
+                // Against an earlier neighbour or the image's edge, this region draws the line.
+                if other.is_some_and(|o| rank[o as usize] > rank[region as usize]) {
+                    continue;
+                }
+                let (start, segments) = &boundaries.curves[id as usize];
+                let starts = std::iter::once(*start).chain(segments.iter().map(Segment::end));
+                for (segment, from) in segments.iter().zip(starts) {
+                    let found = pieces.contains(segment) || pieces.contains(&segment.reversed(from));
+                    assert!(found, "region {region}, chain {id}: {segment:?} is not in its outline");
+                    shared += 1;
+                }
+            }
+        }
+        assert!(shared > 100, "{shared} pieces checked");
+        // The curves are fitted: fewer pieces than the traced points.
+        let traced: usize = boundaries.map.chains().iter().map(|c| c.points.len()).sum();
+        let fitted: usize = boundaries.curves.iter().map(|c| c.1.len()).sum();
+        assert!(fitted * 2 < traced, "{fitted} pieces for {traced} traced points");
     }
 
     #[test]
     fn a_flat_picture_is_its_background_alone_and_the_canvas_is_its_rendering() {
         let flat = Rgb32FImage::from_pixel(48, 32, Rgb([0.2, 0.6, 0.4]));
         let segmentation = slic(&flat, &SlicOptions { n_segments: 12, ..Default::default() }).unwrap();
-        let drawing = FallbackDrawing::new(&flat, &segmentation);
+        let drawing = FallbackDrawing::new(&flat, &segmentation, None);
         assert!(drawing.regions.iter().all(Option::is_none), "a region drew nothing yet was kept");
         assert_eq!(drawing.paths().len(), 1);
         assert!(drawing.error < 1e-3, "{}", drawing.error);
         let image = wavy_image();
         let segmentation = slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap();
-        let drawing = FallbackDrawing::new(&image, &segmentation);
+        let drawing = FallbackDrawing::new(&image, &segmentation, None);
         assert!(drawing.regions.iter().filter(|r| r.is_some()).count() > 30, "regions that draw are kept");
         let rendered = raster::render_exact(&drawing.paths(), 96, 64, [1.0; 3]);
         let scene = Scene::drawn(image, segmentation, drawing.placed(), drawing.canvas.clone());
@@ -240,7 +378,7 @@ mod tests {
     fn a_fitted_path_covers_its_polygon() {
         // A 10 × 10 pixel square at (5, 5) on a 20 × 20 canvas.
         let corners = vec![[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]];
-        let polygon = Polygon::new(corners, [0.2, 0.4, 0.6], 1.0).unwrap();
+        let polygon = Outline::polygon(&corners, [0.2, 0.4, 0.6], 1.0).unwrap();
         let path = fitted_path(&polygon, (20, 20)).unwrap();
         assert_eq!((path.color, path.alpha), (polygon.color, polygon.alpha));
         // The square's area (1/4 of the canvas) grown by half a pixel on each side.

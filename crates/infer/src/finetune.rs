@@ -64,7 +64,7 @@ pub struct Progress {
     pub psnr: f64,
 }
 
-/// Fine-tunes every path of `scene` against its image. Traced polygons (the fallback's regions)
+/// Fine-tunes every path of `scene` against its image. Outlines (the fallback's regions)
 /// start as their outlines fitted with one path ([`fitted_path`]), which only approximates
 /// them: if the best state found is worse than the scene was, the scene keeps its old shapes,
 /// as it does when no step is taken. Returns the number of optimizer steps taken (0 when a
@@ -89,7 +89,7 @@ pub fn finetune_with_progress(
     let original = scene.scene();
     let as_path = |shape: &Shape| match shape {
         Shape::Path(path) => Some(*path),
-        Shape::Polygon(polygon) => fitted_path(polygon, (width, height)),
+        Shape::Outline(outline) => fitted_path(outline, (width, height)),
     };
     let Some(start) = original.iter().map(as_path).collect::<Option<Vec<Path>>>() else { return 0 };
     let mut params: Vec<[f32; PARAMS]> = start.iter().map(|path| path.to_params()).collect();

@@ -82,6 +82,11 @@ pub struct Job {
     pub svg: SvgOptions,
     /// SLIC compactness (the method's 30).
     pub compactness: f32,
+    /// Regions drawn along shared boundaries fitted with curves, straying at most this far
+    /// (pixels of the working image) from the traced ones: larger draws with fewer curves and
+    /// bytes, 0 keeps every traced corner. `None` (the default): each region's traced polygon,
+    /// grown under its later neighbours, which draws photos better at equal paths.
+    pub tolerance: Option<f32>,
     /// Crops per network call.
     pub batch: usize,
 }
@@ -95,6 +100,7 @@ impl Default for Job {
             finetune: None,
             svg: SvgOptions::default(),
             compactness: 30.0,
+            tolerance: None,
             batch: 32,
         }
     }
@@ -270,7 +276,7 @@ pub fn run_with_progress(
             (choice.paths, regions, Some(choice.free))
         }
     };
-    let segmented = choose_segmentation(target, regions, &point, job.compactness, free)?;
+    let segmented = choose_segmentation(target, regions, &point, job.compactness, job.tolerance, free)?;
     let mut scene = Scene::new(target.clone(), segmented.segmentation);
     let superpixels = started.elapsed().as_secs_f64();
 

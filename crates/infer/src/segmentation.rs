@@ -75,6 +75,7 @@ pub fn choose_segmentation(
     regions: usize,
     point: &OperatingPoint,
     compactness: f32,
+    tolerance: Option<f32>,
     free: Option<Segmentation>,
 ) -> Result<Segmented, SlicError> {
     let small = (image.width().max(image.height()) > CHOICE_SIDE)
@@ -89,9 +90,10 @@ pub fn choose_segmentation(
             (None, None) => segment(image, regions, &free_options(compactness))?,
             (Some(options), _) => segment(image, regions, &options)?,
         };
-        return Ok(score(image, segmentation));
+        return Ok(score(image, segmentation, tolerance));
     }
-    Ok(best_candidate(image, regions, point, compactness, free)?.0)
+    let (best, _) = best_candidate(image, regions, point, compactness, free)?;
+    Ok(score(image, best, tolerance))
 }
 
 /// Images longer than this (px) have [`choose_segmentation`]'s candidates compared on a copy
@@ -110,7 +112,7 @@ fn best_candidate(
     point: &OperatingPoint,
     compactness: f32,
     free: Option<Segmentation>,
-) -> Result<(Segmented, Option<SegmentOptions>), SlicError> {
+) -> Result<(Segmentation, Option<SegmentOptions>), SlicError> {
     let free = match free {
         Some(free) => free,
         None => segment(image, regions, &free_options(compactness))?,
@@ -126,12 +128,12 @@ fn best_candidate(
             best = (error, candidate, Some(options));
         }
     }
-    Ok((score(image, best.1), best.2))
+    Ok((best.1, best.2))
 }
 
-/// `segmentation` with its fallback drawing.
-fn score(image: &Rgb32FImage, segmentation: Segmentation) -> Segmented {
-    let fallback = FallbackDrawing::new(image, &segmentation);
+/// `segmentation` with its fallback drawing (boundaries fitted within `tolerance` pixels, if given).
+fn score(image: &Rgb32FImage, segmentation: Segmentation, tolerance: Option<f32>) -> Segmented {
+    let fallback = FallbackDrawing::new(image, &segmentation, tolerance);
     Segmented { segmentation, fallback }
 }
 
@@ -289,7 +291,7 @@ mod tests {
     fn the_chosen_segmentation_draws_no_worse_than_any_candidate() {
         let image = bands_and_disc();
         let point = OperatingPoint { oversegment: 3.0, min_compactness: 0.3, ..OperatingPoint::default() };
-        let chosen = choose_segmentation(&image, 24, &point, 30.0, None).unwrap();
+        let chosen = choose_segmentation(&image, 24, &point, 30.0, None, None).unwrap();
         assert_eq!(chosen.fallback.regions.len(), chosen.segmentation.regions.len());
         let candidates: Vec<SegmentOptions> =
             std::iter::once(free_options(30.0)).chain(shaped_candidates(&point, 30.0)).collect();
@@ -306,7 +308,7 @@ mod tests {
         // What the rule stands for: the traced drawing that draws best (every candidate drawn).
         let errors: Vec<f64> = segmentations
             .iter()
-            .map(|segmentation| FallbackDrawing::new(&image, segmentation).error)
+            .map(|segmentation| FallbackDrawing::new(&image, segmentation, None).error)
             .collect();
         for (options, error) in candidates.iter().zip(&errors) {
             assert!(
@@ -336,13 +338,13 @@ mod tests {
             }
         });
         let point = OperatingPoint { oversegment: 3.0, min_compactness: 0.3, ..OperatingPoint::default() };
-        let chosen = choose_segmentation(&image, 24, &point, 30.0, None).unwrap();
+        let chosen = choose_segmentation(&image, 24, &point, 30.0, None, None).unwrap();
         let small = common::decode::resized(&image, CHOICE_SIDE);
         assert_eq!(small.dimensions(), (1024, 32));
         let winner = best_candidate(&small, 24, &point, 30.0, None).unwrap().1;
         let full = segment(&image, 24, &winner.unwrap_or_else(|| free_options(30.0))).unwrap();
         assert_eq!(chosen.segmentation.labels, full.labels, "not the small copy's winner, made at full size");
-        assert_eq!(chosen.fallback.error, FallbackDrawing::new(&image, &full).error);
+        assert_eq!(chosen.fallback.error, FallbackDrawing::new(&image, &full, None).error);
     }
 
     #[test]

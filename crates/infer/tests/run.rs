@@ -147,3 +147,20 @@ fn a_flat_picture_is_one_path_and_says_so() {
     let said: Vec<String> = outcome.warnings.iter().map(ToString::to_string).collect();
     assert!(said.iter().any(|w| w.starts_with("1 of 500 paths drawn")), "{said:?}");
 }
+
+#[test]
+fn curves_cover_every_pixel_and_a_looser_tolerance_writes_fewer_bytes() {
+    let (models, image, device) = (models(false), photo(), Device::flex());
+    let mut bytes = Vec::new();
+    for tolerance in [Some(0.0), Some(0.5), Some(2.0)] {
+        for budget in [12usize, 60, 200] {
+            let outcome = run(&models, &image, &Job { tolerance, ..job(budget) }, &device).unwrap();
+            assert_eq!(uncovered(&outcome.svg, 96, 64), 0, "{tolerance:?} at {budget} paths");
+            assert!(outcome.svg.contains('c') || tolerance == Some(0.0), "curves at {tolerance:?}");
+            if budget == 200 {
+                bytes.push(outcome.report.svg_bytes);
+            }
+        }
+    }
+    assert!(bytes[2] < bytes[1] && bytes[1] < bytes[0], "bytes at tolerance 0, 0.5, 2: {bytes:?}");
+}

@@ -37,7 +37,7 @@ fn no_stage_lowers_the_psnr() {
             segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
         let score = |scene: &Scene| psnr(&scene.canvas_image(), &image);
 
-        let drawing = FallbackDrawing::new(&image, &segmentation);
+        let drawing = FallbackDrawing::new(&image, &segmentation, None);
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
         let no_coarse = CoarseBudget { paths: 0, total: 45 };
         draw_coarse(&models.coarse, &models.config, &mut fallback, drawing.clone(), no_coarse, 16, &device);
@@ -89,7 +89,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let regions = segmentation.regions.len();
     let mut scene = Scene::new(image.clone(), segmentation.clone());
     let models = Models::bundled(false, &device).unwrap();
-    let drawing = FallbackDrawing::new(&image, &segmentation);
+    let drawing = FallbackDrawing::new(&image, &segmentation, None);
     let no_coarse = CoarseBudget { paths: 0, total: regions + 1 };
     draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);
     // Fine-tuning moves paths: a drawing of paths alone (the traced regions, each fitted with
@@ -100,7 +100,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
         .iter()
         .map(|shape| match shape {
             Shape::Path(path) => Shape::Path(*path),
-            Shape::Polygon(polygon) => Shape::Path(fitted_path(polygon, size).unwrap()),
+            Shape::Outline(outline) => Shape::Path(fitted_path(outline, size).unwrap()),
         })
         .collect();
     scene.set_shapes(&paths);

@@ -17,11 +17,11 @@ mod svg;
 pub use device::{Backend, BackendError};
 pub use exact::{coverage_exact, coverage_exact_window, paint_exact, render_exact, skia_outline};
 pub use exact_batch::ExactBatch;
-pub use fit::fit_outline;
+pub use fit::{fit_curve, fit_outline};
 pub use geometry::{bernstein, cubic_point};
 pub use gradient::Window;
 pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS, VISIBLE_ALPHA};
-pub use shape::{Filled, Polygon, Shape};
+pub use shape::{Contour, Filled, Outline, Segment, Shape};
 pub use shapes::{random_blob, random_scene};
 pub use soft::{
     SoftRasterOptions, coverage_soft, paint_soft, paint_soft_with_union, render_soft, render_soft_with_union,

@@ -1,13 +1,14 @@
-//! What the exact renderer and the SVG writer fill: a model's [`Path`] (four cubics) or a
-//! [`Polygon`] (any number of straight edges: a superpixel's outline traced along its pixels,
-//! which one path can only approximate).
+//! What the exact renderer and the SVG writer fill: a model's [`Path`] (four cubics) or an
+//! [`Outline`] (contours of any number of lines and cubics: superpixels drawn along the
+//! boundaries they share, which one path can only approximate).
 
 use std::fmt::Write;
 use std::sync::Arc;
 
-use common::{Bounds, PixelBox};
+use common::{Bounds, PixelBox, signed_area};
 use tiny_skia::PathBuilder;
 
+use crate::geometry::cubic_point;
 use crate::path::{Path, SEGMENTS};
 
 /// A closed outline filled with one colour, in the unit square of a canvas.
@@ -104,30 +105,128 @@ impl Filled for Path {
     }
 }
 
-/// A closed polygon filled with one colour, corners in the unit square of a canvas: a region
-/// drawn exactly along its pixel edges.
+/// One piece of a [`Contour`], from where the previous piece ended: a straight edge or a cubic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Segment {
+    /// A straight edge to this point.
+    Line([f32; 2]),
+    /// A cubic with these two handles, to the last point.
+    Cubic([f32; 2], [f32; 2], [f32; 2]),
+}
+
+impl Segment {
+    /// Where it ends.
+    pub fn end(&self) -> [f32; 2] {
+        match *self {
+            Segment::Line(end) | Segment::Cubic(_, _, end) => end,
+        }
+    }
+
+    /// The same piece walked the other way, from its end to `start` (where it began): the same
+    /// points, so a boundary shared by two outlines is the same curve in both.
+    pub fn reversed(&self, start: [f32; 2]) -> Segment {
+        match *self {
+            Segment::Line(_) => Segment::Line(start),
+            Segment::Cubic(c1, c2, _) => Segment::Cubic(c2, c1, start),
+        }
+    }
+
+    /// Its points (handles and end) mapped by `f`.
+    pub fn map(&self, f: impl Fn([f32; 2]) -> [f32; 2]) -> Segment {
+        match *self {
+            Segment::Line(end) => Segment::Line(f(end)),
+            Segment::Cubic(c1, c2, end) => Segment::Cubic(f(c1), f(c2), f(end)),
+        }
+    }
+
+    fn points(&self) -> impl Iterator<Item = [f32; 2]> {
+        let (points, count) = match *self {
+            Segment::Line(end) => ([end, end, end], 1),
+            Segment::Cubic(c1, c2, end) => ([c1, c2, end], 3),
+        };
+        points.into_iter().take(count)
+    }
+}
+
+/// A closed figure: a start point and the pieces that lead back to it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Polygon {
-    corners: Vec<[f32; 2]>,
+pub struct Contour {
+    /// Where it starts and ends.
+    pub start: [f32; 2],
+    /// Its pieces in order; the last ends at `start`.
+    pub segments: Vec<Segment>,
+}
+
+impl Contour {
+    /// Its points in order, cubics cut into `steps` straight edges (start included, the closing
+    /// point left out): the contour as a polygon.
+    pub fn flatten(&self, steps: usize) -> Vec<[f32; 2]> {
+        let steps = steps.max(1);
+        let mut points = vec![self.start];
+        let mut at = self.start;
+        for segment in &self.segments {
+            if let Segment::Cubic(c1, c2, end) = *segment {
+                let control = [at, c1, c2, end];
+                points.extend((1..steps).map(|i| cubic_point(&control, i as f32 / steps as f32)));
+            }
+            at = segment.end();
+            points.push(at);
+        }
+        points.pop();
+        points
+    }
+
+    fn points(&self) -> impl Iterator<Item = [f32; 2]> + '_ {
+        std::iter::once(self.start).chain(self.segments.iter().flat_map(Segment::points))
+    }
+}
+
+/// Closed contours filled together with one colour (nonzero rule: a contour winding the other
+/// way is a hole), in the unit square of a canvas: a region, or a set of regions, drawn along
+/// the boundary curves it shares with its neighbours.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outline {
+    contours: Vec<Contour>,
     /// Fill colour, RGB in [0, 1].
     pub color: [f32; 3],
     /// Opacity in [0, 1]; 0 means invisible.
     pub alpha: f32,
 }
 
-impl Polygon {
-    /// The polygon through `corners` (closed back to the first); `None` with fewer than three.
-    pub fn new(corners: Vec<[f32; 2]>, color: [f32; 3], alpha: f32) -> Option<Self> {
-        (corners.len() >= 3).then_some(Self { corners, color, alpha })
+impl Outline {
+    /// The outline of `contours`; `None` without a contour of at least two pieces (one piece
+    /// encloses nothing).
+    pub fn new(contours: Vec<Contour>, color: [f32; 3], alpha: f32) -> Option<Self> {
+        let contours: Vec<Contour> = contours.into_iter().filter(|c| !c.segments.is_empty()).collect();
+        contours.iter().any(|c| c.segments.len() >= 2).then_some(Self { contours, color, alpha })
     }
 
-    /// Its corners, in order.
-    pub fn corners(&self) -> &[[f32; 2]] {
-        &self.corners
+    /// The polygon through `corners` (closed back to the first); `None` with fewer than three.
+    pub fn polygon(corners: &[[f32; 2]], color: [f32; 3], alpha: f32) -> Option<Self> {
+        if corners.len() < 3 {
+            return None;
+        }
+        let segments = corners[1..].iter().chain(&corners[..1]).map(|&p| Segment::Line(p)).collect();
+        Self::new(vec![Contour { start: corners[0], segments }], color, alpha)
+    }
+
+    /// Its contours.
+    pub fn contours(&self) -> &[Contour] {
+        &self.contours
+    }
+
+    /// The contour enclosing the most area ([`Contour::flatten`] with `steps` edges a cubic):
+    /// what one path can approximate of the outline.
+    pub fn largest_contour(&self, steps: usize) -> Vec<[f32; 2]> {
+        self.contours
+            .iter()
+            .map(|c| c.flatten(steps))
+            .max_by(|a, b| signed_area(a).abs().total_cmp(&signed_area(b).abs()))
+            .unwrap_or_default()
     }
 }
 
-impl Filled for Polygon {
+impl Filled for Outline {
     fn color(&self) -> [f32; 3] {
         self.color
     }
@@ -137,11 +236,14 @@ impl Filled for Polygon {
     }
 
     fn is_finite(&self) -> bool {
-        self.corners.iter().flatten().chain(&self.color).chain([&self.alpha]).all(|v| v.is_finite())
+        let points = self.contours.iter().flat_map(Contour::points).flatten();
+        points.chain(self.color).chain([self.alpha]).all(f32::is_finite)
     }
 
     fn bounds(&self) -> Option<Bounds> {
-        Bounds::of_points(&self.corners)
+        // A cubic lies within its control points' hull.
+        let points: Vec<[f32; 2]> = self.contours.iter().flat_map(Contour::points).collect();
+        Bounds::of_points(&points)
     }
 
     fn geometry(&self) -> Option<tiny_skia::Path> {
@@ -149,46 +251,94 @@ impl Filled for Polygon {
             return None;
         }
         let mut builder = PathBuilder::new();
-        let [x, y] = self.corners[0];
-        builder.move_to(x, y);
-        for &[x, y] in &self.corners[1..] {
-            builder.line_to(x, y);
+        for contour in &self.contours {
+            builder.move_to(contour.start[0], contour.start[1]);
+            for segment in &contour.segments {
+                match *segment {
+                    Segment::Line([x, y]) => builder.line_to(x, y),
+                    Segment::Cubic([x1, y1], [x2, y2], [x, y]) => builder.cubic_to(x1, y1, x2, y2, x, y),
+                }
+            }
+            builder.close();
         }
-        builder.close();
         builder.finish()
     }
 
-    /// Axis-aligned edges (a traced outline has only those) are written `H`/`V`, the others `L`.
+    /// Each contour starts with an absolute `M`; its pieces are relative (`h`, `v`, `l`, `c`)
+    /// to the rounded point before them, so they add up to the rounded points exactly; the last
+    /// piece, which ends at the start, is `z` alone when it is straight.
     fn svg_data(&self, [sx, sy]: [f32; 2], number: &dyn Fn(f32) -> String) -> String {
-        let [x, y] = self.corners[0];
-        let mut d = format!("M{} {}", number(x * sx), number(y * sy));
-        for pair in self.corners.windows(2) {
-            let ([x0, y0], [x, y]) = (pair[0], pair[1]);
-            let _ = match (x == x0, y == y0) {
-                (false, true) => write!(d, "H{}", number(x * sx)),
-                (true, false) => write!(d, "V{}", number(y * sy)),
-                _ => write!(d, "L{} {}", number(x * sx), number(y * sy)),
-            };
+        let rounded = |[x, y]: [f32; 2]| -> [f32; 2] {
+            [number(x * sx).parse().unwrap_or(x * sx), number(y * sy).parse().unwrap_or(y * sy)]
+        };
+        let mut d = String::new();
+        for contour in &self.contours {
+            let mut at = rounded(contour.start);
+            let _ = write!(d, "M{}", numbers(&[at[0], at[1]], number));
+            let last = contour.segments.len() - 1;
+            for (index, segment) in contour.segments.iter().enumerate() {
+                let delta = |p: [f32; 2]| {
+                    let p = rounded(p);
+                    [p[0] - at[0], p[1] - at[1]]
+                };
+                let end = delta(segment.end());
+                match *segment {
+                    Segment::Line(_) if index == last => {}
+                    Segment::Line(_) if end[1] == 0.0 => write!(d, "h{}", number(end[0])).unwrap_or(()),
+                    Segment::Line(_) if end[0] == 0.0 => write!(d, "v{}", number(end[1])).unwrap_or(()),
+                    Segment::Line(_) => write!(d, "l{}", numbers(&end, number)).unwrap_or(()),
+                    Segment::Cubic(c1, c2, _) => {
+                        let (c1, c2) = (delta(c1), delta(c2));
+                        let _ =
+                            write!(d, "c{}", numbers(&[c1[0], c1[1], c2[0], c2[1], end[0], end[1]], number));
+                    }
+                }
+                at = rounded(segment.end());
+            }
+            d.push('z');
         }
-        d.push('Z');
         d
     }
 }
 
-/// A shape of a drawing: a path or a polygon (shared, so that copying a drawing is cheap).
+/// Numbers as SVG path data writes them shortest: `0.5` as `.5`, and no space before a minus
+/// sign or before a point that cannot continue the number before it.
+fn numbers(values: &[f32], number: &dyn Fn(f32) -> String) -> String {
+    let mut text = String::new();
+    let mut previous_has_point = false;
+    for (i, &value) in values.iter().enumerate() {
+        let written = number(value);
+        let written = match written.strip_prefix("0.") {
+            Some(rest) => format!(".{rest}"),
+            None => match written.strip_prefix("-0.") {
+                Some(rest) => format!("-.{rest}"),
+                None => written,
+            },
+        };
+        let joins = written.starts_with('-') || (written.starts_with('.') && previous_has_point);
+        if i > 0 && !joins {
+            text.push(' ');
+        }
+        previous_has_point = written.contains('.');
+        text.push_str(&written);
+    }
+    text
+}
+
+/// A shape of a drawing: a path or an outline (shared, so that copying a drawing is cheap).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     /// Four cubics, as the models draw and fine-tuning moves.
     Path(Path),
-    /// Straight edges, as a region's outline is traced.
-    Polygon(Arc<Polygon>),
+    /// Contours of lines and cubics, as a region's boundary is traced and fitted.
+    Outline(Arc<Outline>),
 }
 
 impl Shape {
     fn filled(&self) -> &dyn Filled {
         match self {
             Shape::Path(path) => path,
-            Shape::Polygon(polygon) => polygon.as_ref(),
+            Shape::Outline(outline) => outline.as_ref(),
         }
     }
 }
@@ -199,9 +349,9 @@ impl From<Path> for Shape {
     }
 }
 
-impl From<Polygon> for Shape {
-    fn from(polygon: Polygon) -> Self {
-        Shape::Polygon(Arc::new(polygon))
+impl From<Outline> for Shape {
+    fn from(outline: Outline) -> Self {
+        Shape::Outline(Arc::new(outline))
     }
 }
 
@@ -236,16 +386,67 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_polygon_needs_three_corners_and_writes_axis_edges_short() {
-        assert!(Polygon::new(vec![[0.0, 0.0], [1.0, 0.0]], [0.0; 3], 1.0).is_none());
+    fn a_polygon_needs_three_corners_and_writes_relative_edges_short() {
+        assert!(Outline::polygon(&[[0.0, 0.0], [1.0, 0.0]], [0.0; 3], 1.0).is_none());
         let l =
-            Polygon::new(vec![[0.0, 0.0], [0.5, 0.0], [0.5, 0.5], [0.25, 1.0], [0.0, 1.0]], [0.0; 3], 1.0)
+            Outline::polygon(&[[0.0, 0.0], [0.5, 0.0], [0.5, 0.5], [0.25, 1.0], [0.0, 1.0]], [0.0; 3], 1.0)
                 .unwrap();
         let number = |v: f32| format!("{v}");
-        assert_eq!(l.svg_data([4.0, 2.0], &number), "M0 0H2V1L1 2H0Z");
+        assert_eq!(l.svg_data([4.0, 2.0], &number), "M0 0h2v1l-1 1h-1z");
         assert_eq!(l.pixel_box(4, 2), PixelBox::new(0, 0, 3, 2)); // x up to 2 px, widened by one
-        let broken = Polygon::new(vec![[0.0, 0.0], [f32::NAN, 0.0], [0.0, 1.0]], [0.0; 3], 1.0).unwrap();
+        let broken = Outline::polygon(&[[0.0, 0.0], [f32::NAN, 0.0], [0.0, 1.0]], [0.0; 3], 1.0).unwrap();
         assert!(broken.geometry().is_none() && broken.pixel_box(4, 2).is_none());
+    }
+
+    #[test]
+    fn relative_pieces_add_up_to_the_rounded_points() {
+        // A cubic contour and a square hole, written with two decimals at 100 px: read back
+        // by resvg, the outline has the area it has here.
+        let cubic = Contour {
+            start: [0.1234, 0.1],
+            segments: vec![
+                Segment::Cubic([0.5, 0.0], [0.9, 0.05], [0.9, 0.5]),
+                Segment::Line([0.9, 0.9]),
+                Segment::Cubic([0.6, 0.95], [0.3, 0.95], [0.1, 0.9]),
+                Segment::Line([0.1234, 0.1]),
+            ],
+        };
+        let hole = Contour {
+            start: [0.4, 0.4],
+            segments: vec![
+                Segment::Line([0.4, 0.6]),
+                Segment::Line([0.6, 0.6]),
+                Segment::Line([0.6, 0.4]),
+                Segment::Line([0.4, 0.4]),
+            ],
+        };
+        let outline = Outline::new(vec![cubic.clone(), hole], [0.5; 3], 1.0).unwrap();
+        let number = |v: f32| {
+            let text = format!("{v:.2}");
+            text.trim_end_matches('0').trim_end_matches('.').to_string()
+        };
+        let d = outline.svg_data([100.0, 100.0], &number);
+        assert!(d.starts_with("M12.34 10c"), "{d}");
+        assert_eq!(d.matches('M').count(), 2);
+        let svg = format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"100\" height=\"100\"><path d=\"{d}\"/></svg>"
+        );
+        let tree = resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default()).unwrap();
+        let mut read = resvg::tiny_skia::Pixmap::new(100, 100).unwrap();
+        resvg::render(&tree, resvg::tiny_skia::Transform::identity(), &mut read.as_mut());
+        let ours = crate::render_exact(&[outline.clone()], 100, 100, [1.0; 3]);
+        let differing = read
+            .pixels()
+            .iter()
+            .zip(ours.pixels())
+            .filter(|(a, b)| a.alpha() > 128 && b.0[0] > 200 || a.alpha() < 127 && b.0[0] < 180)
+            .count();
+        assert!(differing <= 10, "{differing} pixels differ between resvg's reading and the outline");
+        // The hole winds the other way: the filled area is the contour's less the hole's.
+        let area = signed_area(&cubic.flatten(32)) - 0.04;
+        let covered = ours.pixels().filter(|p| p.0[0] < 200).count() as f32 / 10_000.0;
+        assert!((covered - area).abs() < 0.01, "{covered} vs {area}");
+        assert_eq!(numbers(&[0.5, -0.25, 3.0, 0.75, -1.5], &number), ".5-.25 3 .75-1.5");
     }
 
     #[test]
@@ -254,7 +455,7 @@ mod tests {
         let shape = Shape::from(path);
         assert_eq!(shape, Shape::Path(path));
         assert_eq!((shape.color(), shape.alpha(), shape.bounds()), (path.color, path.alpha, path.bounds()));
-        let polygon = Polygon::new(vec![[0.1, 0.1], [0.9, 0.1], [0.9, 0.9]], [0.3; 3], 1.0).unwrap();
+        let polygon = Outline::polygon(&[[0.1, 0.1], [0.9, 0.1], [0.9, 0.9]], [0.3; 3], 1.0).unwrap();
         let shape = Shape::from(polygon.clone());
         assert_eq!((shape.color(), shape.bounds()), (polygon.color, polygon.bounds()));
     }

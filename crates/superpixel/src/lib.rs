@@ -9,8 +9,10 @@ mod connectivity;
 mod crop;
 mod merge;
 mod outline;
+mod planar;
 mod slic;
 
 pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
 pub use merge::{Hierarchy, SegmentOptions, segment};
+pub use planar::{Chain, Directed, PlanarMap};
 pub use slic::{Region, Segmentation, SlicError, SlicOptions, slic, worst_first};

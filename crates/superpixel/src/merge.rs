@@ -483,4 +483,26 @@ mod tests {
             assert_eq!(merges, brute_force(&base, floor), "floor {floor}");
         }
     }
+
+    fn labelled(rows: &[&str]) -> Segmentation {
+        let (width, height) = (rows[0].len() as u32, rows.len() as u32);
+        let labels: Vec<u32> = rows.iter().flat_map(|row| row.bytes().map(|b| (b - b'0') as u32)).collect();
+        let count = *labels.iter().max().unwrap() as usize + 1;
+        Segmentation::from_labels(&Rgb32FImage::new(width, height), labels, count)
+    }
+
+    #[test]
+    fn limiting_merges_the_most_alike_neighbours() {
+        // Regions 0 and 1 are both black, 2 is white, 3 is black but only touches 2.
+        let seg = labelled(&["0011", "0011", "2222", "3333"]);
+        let image = Rgb32FImage::from_fn(4, 4, |_, y| image::Rgb(if y == 2 { [1.0; 3] } else { [0.0; 3] }));
+        let seg = Segmentation::from_labels(&image, seg.labels, 4);
+        let limited = seg.clone().limit_regions(&image, 3, 0.0);
+        assert_eq!(limited.regions.len(), 3);
+        assert_eq!(limited.label(0, 0), limited.label(3, 0), "the two black neighbours merged");
+        assert_ne!(limited.label(0, 3), limited.label(0, 0), "black 3 does not touch them");
+        assert_eq!(seg.clone().limit_regions(&image, 9, 0.0), seg);
+        let one = seg.limit_regions(&image, 1, 0.5);
+        assert_eq!(one.regions.len(), 1);
+    }
 }

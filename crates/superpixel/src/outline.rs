@@ -1,6 +1,7 @@
 //! A region's outline as the polygon that draws it: the outer boundary along its pixel edges,
 //! its staircases cut, grown under the regions painted over it.
 
+use crate::planar::without_collinear;
 use crate::slic::Segmentation;
 
 /// Headings along pixel edges in image coordinates (y down): east, south, west, north.
@@ -131,17 +132,7 @@ fn without_redundant_points(mut points: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
     while points.len() > 1 && points.first() == points.last() {
         points.pop();
     }
-    let mut kept: Vec<[f32; 2]> = Vec::with_capacity(points.len());
-    let n = points.len();
-    let cross =
-        |a: [f32; 2], b: [f32; 2], c: [f32; 2]| (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]);
-    for i in 0..n {
-        let before = *kept.last().unwrap_or(&points[(i + n - 1) % n]);
-        if cross(before, points[i], points[(i + 1) % n]) != 0.0 {
-            kept.push(points[i]);
-        }
-    }
-    kept
+    without_collinear(points, true)
 }
 
 #[cfg(test)]
@@ -224,21 +215,6 @@ mod tests {
         // Only into neighbours: region 2 lies beyond region 1.
         let seg = segmentation(&["0122"]);
         assert_eq!(seg.outline(0, |l| l == 2), vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
-    }
-
-    #[test]
-    fn limiting_merges_the_most_alike_neighbours() {
-        // Regions 0 and 1 are both black, 2 is white, 3 is black but only touches 2.
-        let seg = segmentation(&["0011", "0011", "2222", "3333"]);
-        let image = Rgb32FImage::from_fn(4, 4, |_, y| image::Rgb(if y == 2 { [1.0; 3] } else { [0.0; 3] }));
-        let seg = Segmentation::from_labels(&image, seg.labels, 4);
-        let limited = seg.clone().limit_regions(&image, 3, 0.0);
-        assert_eq!(limited.regions.len(), 3);
-        assert_eq!(limited.label(0, 0), limited.label(3, 0), "the two black neighbours merged");
-        assert_ne!(limited.label(0, 3), limited.label(0, 0), "black 3 does not touch them");
-        assert_eq!(seg.clone().limit_regions(&image, 9, 0.0), seg);
-        let one = seg.limit_regions(&image, 1, 0.5);
-        assert_eq!(one.regions.len(), 1);
     }
 
     #[test]

@@ -87,6 +87,13 @@ struct Args {
     /// Decimals of the SVG's coordinates (0 to 6; 2 keeps 1/100 pixel, fewer make smaller files).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=MAX_DECIMALS as i64))]
     decimals: u8,
+    /// Draw regions along shared boundaries fitted with curves that stray at most this far
+    /// (pixels of the working image, 0 to 8) from the traced ones: curves an editor can reshape,
+    /// each boundary the same curve on both sides. Larger gives fewer curves and bytes. Default:
+    /// each region's traced polygon, which draws data/eval better at equal paths and bytes (at 1:
+    /// photos 0.24 dB lower at 500 paths for the same bytes, emoji 1.8 dB lower).
+    #[arg(long, value_parser = tolerance)]
+    tolerance: Option<f32>,
     /// The colour transparent pixels are composited over (`#rrggbb`); the SVG is opaque.
     #[arg(long, default_value = "#ffffff", value_parser = colour)]
     background: Colour,
@@ -166,6 +173,15 @@ fn seconds(text: &str) -> Result<f64, String> {
         Ok(value)
     } else {
         Err(format!("{text} is not a number of seconds within 0 to 3600"))
+    }
+}
+
+fn tolerance(text: &str) -> Result<f32, String> {
+    let value: f32 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
+    if value.is_finite() && (0.0..=8.0).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{text} is not a tolerance within 0 to 8 pixels"))
     }
 }
 
@@ -448,6 +464,7 @@ fn run(args: &Args) -> anyhow::Result<usize> {
         regions: args.regions.map(|r| r as usize),
         finetune: finetune.map(|budget| FinetuneOptions { budget, ..FinetuneOptions::default() }),
         svg: SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() },
+        tolerance: args.tolerance,
         ..Job::default()
     };
 
