@@ -284,8 +284,12 @@ impl Filled for Outline {
                 let end = delta(segment.end());
                 match *segment {
                     Segment::Line(_) if index == last => {}
-                    Segment::Line(_) if end[1] == 0.0 => write!(d, "h{}", number(end[0])).unwrap_or(()),
-                    Segment::Line(_) if end[0] == 0.0 => write!(d, "v{}", number(end[1])).unwrap_or(()),
+                    Segment::Line(_) if end[1] == 0.0 => {
+                        write!(d, "h{}", numbers(&end[..1], number)).unwrap_or(())
+                    }
+                    Segment::Line(_) if end[0] == 0.0 => {
+                        write!(d, "v{}", numbers(&end[1..], number)).unwrap_or(())
+                    }
                     Segment::Line(_) => write!(d, "l{}", numbers(&end, number)).unwrap_or(()),
                     Segment::Cubic(c1, c2, _) => {
                         let (c1, c2) = (delta(c1), delta(c2));
@@ -393,6 +397,8 @@ mod tests {
                 .unwrap();
         let number = |v: f32| format!("{v}");
         assert_eq!(l.svg_data([4.0, 2.0], &number), "M0 0h2v1l-1 1h-1z");
+        let half = Outline::polygon(&[[0.0, 0.0], [0.125, 0.0], [0.125, 0.25]], [0.0; 3], 1.0).unwrap();
+        assert_eq!(half.svg_data([4.0, 2.0], &number), "M0 0h.5v.5z");
         assert_eq!(l.pixel_box(4, 2), PixelBox::new(0, 0, 3, 2)); // x up to 2 px, widened by one
         let broken = Outline::polygon(&[[0.0, 0.0], [f32::NAN, 0.0], [0.0, 1.0]], [0.0; 3], 1.0).unwrap();
         assert!(broken.geometry().is_none() && broken.pixel_box(4, 2).is_none());
