@@ -282,21 +282,16 @@ impl Filled for Outline {
                     [p[0] - at[0], p[1] - at[1]]
                 };
                 let end = delta(segment.end());
-                match *segment {
-                    Segment::Line(_) if index == last => {}
-                    Segment::Line(_) if end[1] == 0.0 => {
-                        write!(d, "h{}", numbers(&end[..1], number)).unwrap_or(())
-                    }
-                    Segment::Line(_) if end[0] == 0.0 => {
-                        write!(d, "v{}", numbers(&end[1..], number)).unwrap_or(())
-                    }
-                    Segment::Line(_) => write!(d, "l{}", numbers(&end, number)).unwrap_or(()),
+                let _ = match *segment {
+                    Segment::Line(_) if index == last => Ok(()),
+                    Segment::Line(_) if end[1] == 0.0 => write!(d, "h{}", numbers(&end[..1], number)),
+                    Segment::Line(_) if end[0] == 0.0 => write!(d, "v{}", numbers(&end[1..], number)),
+                    Segment::Line(_) => write!(d, "l{}", numbers(&end, number)),
                     Segment::Cubic(c1, c2, _) => {
                         let (c1, c2) = (delta(c1), delta(c2));
-                        let _ =
-                            write!(d, "c{}", numbers(&[c1[0], c1[1], c2[0], c2[1], end[0], end[1]], number));
+                        write!(d, "c{}", numbers(&[c1[0], c1[1], c2[0], c2[1], end[0], end[1]], number))
                     }
-                }
+                };
                 at = rounded(segment.end());
             }
             d.push('z');

@@ -484,17 +484,10 @@ mod tests {
         }
     }
 
-    fn labelled(rows: &[&str]) -> Segmentation {
-        let (width, height) = (rows[0].len() as u32, rows.len() as u32);
-        let labels: Vec<u32> = rows.iter().flat_map(|row| row.bytes().map(|b| (b - b'0') as u32)).collect();
-        let count = *labels.iter().max().unwrap() as usize + 1;
-        Segmentation::from_labels(&Rgb32FImage::new(width, height), labels, count)
-    }
-
     #[test]
     fn limiting_merges_the_most_alike_neighbours() {
         // Regions 0 and 1 are both black, 2 is white, 3 is black but only touches 2.
-        let seg = labelled(&["0011", "0011", "2222", "3333"]);
+        let seg = Segmentation::from_rows(&["0011", "0011", "2222", "3333"]);
         let image = Rgb32FImage::from_fn(4, 4, |_, y| image::Rgb(if y == 2 { [1.0; 3] } else { [0.0; 3] }));
         let seg = Segmentation::from_labels(&image, seg.labels, 4);
         let limited = seg.clone().limit_regions(&image, 3, 0.0);

@@ -142,13 +142,6 @@ mod tests {
 
     use super::*;
 
-    fn segmentation(rows: &[&str]) -> Segmentation {
-        let (width, height) = (rows[0].len() as u32, rows.len() as u32);
-        let labels: Vec<u32> = rows.iter().flat_map(|row| row.bytes().map(|b| (b - b'0') as u32)).collect();
-        let count = *labels.iter().max().unwrap() as usize + 1;
-        Segmentation::from_labels(&Rgb32FImage::new(width, height), labels, count)
-    }
-
     /// The exact outer boundary: the corners where the walk turns.
     fn corners(seg: &Segmentation, region: u32) -> Vec<[f32; 2]> {
         let walk = seg.walk(region, |x, y| seg.label(x, y) == region);
@@ -161,7 +154,7 @@ mod tests {
 
     #[test]
     fn a_rectangle_has_four_corners() {
-        let seg = segmentation(&["0000", "0110", "0110", "0000"]);
+        let seg = Segmentation::from_rows(&["0000", "0110", "0110", "0000"]);
         assert_eq!(corners(&seg, 1), vec![[1.0, 1.0], [3.0, 1.0], [3.0, 3.0], [1.0, 3.0]]);
         assert_eq!(corners(&seg, 0), vec![[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]]);
     }
@@ -169,23 +162,23 @@ mod tests {
     #[test]
     fn concave_shapes_and_diagonal_neighbours() {
         // An L: area 5 pixels.
-        let seg = segmentation(&["100", "100", "111"]);
+        let seg = Segmentation::from_rows(&["100", "100", "111"]);
         let outline = corners(&seg, 1);
         assert_eq!(signed_area(&outline), 5.0);
         assert_eq!(outline.len(), 6);
         // Region 1 touches a pixel of itself only diagonally? Not possible when 4-connected,
         // but the outline must still close around the 4-connected part it starts from.
-        let seg = segmentation(&["1100", "1111", "0011"]);
+        let seg = Segmentation::from_rows(&["1100", "1111", "0011"]);
         assert_eq!(signed_area(&corners(&seg, 1)), 8.0);
         // The region around a hole: the outline is the outer boundary only.
-        let seg = segmentation(&["1111", "1001", "1111"]);
+        let seg = Segmentation::from_rows(&["1111", "1001", "1111"]);
         assert_eq!(signed_area(&corners(&seg, 1)), 12.0);
         assert_eq!(signed_area(&corners(&seg, 0)), 2.0);
     }
 
     #[test]
     fn a_diagonal_staircase_becomes_a_slope() {
-        let seg = segmentation(&["0001", "0011", "0111", "1111"]);
+        let seg = Segmentation::from_rows(&["0001", "0011", "0111", "1111"]);
         let nothing_later = |_: u32| false;
         // The steps cut at their midpoints: one straight edge from (0.5, 3) to (3, 0.5); the
         // corners on the image border stay.
@@ -201,19 +194,19 @@ mod tests {
             16.0
         );
         // Where three regions meet, the corner stays.
-        let seg = segmentation(&["0022", "0011", "1111"]);
+        let seg = Segmentation::from_rows(&["0022", "0011", "1111"]);
         assert!(seg.outline(1, nothing_later).contains(&[2.0, 1.0]));
     }
 
     #[test]
     fn a_region_grows_under_the_neighbours_painted_later() {
-        let seg = segmentation(&["0011", "0011"]);
+        let seg = Segmentation::from_rows(&["0011", "0011"]);
         assert_eq!(seg.outline(0, |_| false), vec![[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]);
         assert_eq!(seg.outline(0, |l| l == 1), vec![[0.0, 0.0], [3.0, 0.0], [3.0, 2.0], [0.0, 2.0]]);
         // The later region itself is not grown under the earlier one.
         assert_eq!(seg.outline(1, |l| l == 1), vec![[2.0, 0.0], [4.0, 0.0], [4.0, 2.0], [2.0, 2.0]]);
         // Only into neighbours: region 2 lies beyond region 1.
-        let seg = segmentation(&["0122"]);
+        let seg = Segmentation::from_rows(&["0122"]);
         assert_eq!(seg.outline(0, |l| l == 2), vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
     }
 

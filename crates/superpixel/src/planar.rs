@@ -178,18 +178,28 @@ impl Visited {
         Self { horizontal: vec![false; w * (h + 1)], vertical: vec![false; (w + 1) * h], width: width as i64 }
     }
 
-    /// The flag of the unit edge leaving `corner` heading `heading`.
-    fn slot(&mut self, (x, y): (i64, i64), heading: usize) -> &mut bool {
+    /// Which list holds the unit edge leaving `corner` heading `heading`, and where.
+    fn index(&self, (x, y): (i64, i64), heading: usize) -> (bool, usize) {
         match heading {
-            0 => &mut self.horizontal[(y * self.width + x) as usize],
-            2 => &mut self.horizontal[(y * self.width + x - 1) as usize],
-            1 => &mut self.vertical[(y * (self.width + 1) + x) as usize],
-            _ => &mut self.vertical[((y - 1) * (self.width + 1) + x) as usize],
+            0 => (true, (y * self.width + x) as usize),
+            2 => (true, (y * self.width + x - 1) as usize),
+            1 => (false, (y * (self.width + 1) + x) as usize),
+            _ => (false, ((y - 1) * (self.width + 1) + x) as usize),
         }
     }
 
-    fn get(&mut self, corner: (i64, i64), heading: usize) -> bool {
-        *self.slot(corner, heading)
+    fn get(&self, corner: (i64, i64), heading: usize) -> bool {
+        match self.index(corner, heading) {
+            (true, i) => self.horizontal[i],
+            (false, i) => self.vertical[i],
+        }
+    }
+
+    fn mark(&mut self, corner: (i64, i64), heading: usize) {
+        match self.index(corner, heading) {
+            (true, i) => self.horizontal[i] = true,
+            (false, i) => self.vertical[i] = true,
+        }
     }
 }
 
@@ -246,7 +256,7 @@ impl<'a> Tracer<'a> {
         let mut corners = vec![start];
         let mut at = start;
         loop {
-            *visited.slot(at, heading) = true;
+            visited.mark(at, heading);
             let (dx, dy) = STEPS[heading];
             at = (at.0 + dx, at.1 + dy);
             if at == start || (!closed && self.is_junction(at)) {
@@ -340,13 +350,6 @@ mod tests {
 
     use super::*;
 
-    fn segmentation(rows: &[&str]) -> Segmentation {
-        let (width, height) = (rows[0].len() as u32, rows.len() as u32);
-        let labels: Vec<u32> = rows.iter().flat_map(|row| row.bytes().map(|b| (b - b'0') as u32)).collect();
-        let count = *labels.iter().max().unwrap() as usize + 1;
-        Segmentation::from_labels(&Rgb32FImage::new(width, height), labels, count)
-    }
-
     /// The polygons of the contours of `members`' boundary.
     fn polygons(map: &PlanarMap, members: &[u32]) -> Vec<Vec<[f32; 2]>> {
         map.boundary(members)
@@ -376,7 +379,7 @@ mod tests {
 
     #[test]
     fn every_boundary_is_traced_once_between_its_two_sides() {
-        let seg = segmentation(&["0011", "0011", "2211"]);
+        let seg = Segmentation::from_rows(&["0011", "0011", "2211"]);
         let map = PlanarMap::new(&seg);
         // 0|1, 0|2, 2|1 inside; 0, 1, 2 against the outside.
         let mut pairs: Vec<(u32, Option<u32>)> = map.chains().iter().map(|c| (c.right, c.left)).collect();
@@ -394,7 +397,7 @@ mod tests {
 
     #[test]
     fn islands_are_loops_and_holes_wind_the_other_way() {
-        let seg = segmentation(&["00000", "01110", "01210", "01110", "00000"]);
+        let seg = Segmentation::from_rows(&["00000", "01110", "01210", "01110", "00000"]);
         let map = PlanarMap::new(&seg);
         assert_eq!(map.chains().len(), 3, "outer border, 0|1 and 1|2 loops");
         assert!(map.chains().iter().all(|c| c.closed));
@@ -409,7 +412,7 @@ mod tests {
 
     #[test]
     fn staircases_are_cut_and_junctions_stay() {
-        let seg = segmentation(&["0001", "0011", "0111", "1111"]);
+        let seg = Segmentation::from_rows(&["0001", "0011", "0111", "1111"]);
         let map = PlanarMap::new(&seg);
         let diagonal = map.chains().iter().find(|c| c.left.is_some()).unwrap();
         // One straight slope between the two ends on the image border.
@@ -418,7 +421,7 @@ mod tests {
         assert_eq!(points, vec![[0.0, 3.0], [0.5, 3.0], [3.0, 0.0], [3.0, 0.5]]);
         assert_eq!(area(&map, &[0]) + area(&map, &[1]), 16.0);
         // Where three regions meet, the corner stays.
-        let seg = segmentation(&["0022", "0011", "1111"]);
+        let seg = Segmentation::from_rows(&["0022", "0011", "1111"]);
         let map = PlanarMap::new(&seg);
         let touching: Vec<&Chain> = map.chains().iter().filter(|c| c.points.contains(&[2.0, 1.0])).collect();
         assert_eq!(touching.len(), 3, "three chains end on the junction");

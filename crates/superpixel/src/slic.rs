@@ -118,6 +118,16 @@ impl Segmentation {
         errors
     }
 
+    /// A segmentation drawn as text for tests: one row a string, one digit a pixel's label
+    /// (labels 0 to the largest digit; the image black).
+    #[cfg(test)]
+    pub(crate) fn from_rows(rows: &[&str]) -> Self {
+        let (width, height) = (rows[0].len() as u32, rows.len() as u32);
+        let labels: Vec<u32> = rows.iter().flat_map(|row| row.bytes().map(|b| (b - b'0') as u32)).collect();
+        let count = *labels.iter().max().unwrap() as usize + 1;
+        Self::from_labels(&Rgb32FImage::new(width, height), labels, count)
+    }
+
     /// Builds the segmentation of `image` from a label map whose labels are `0..count`, all used.
     pub(crate) fn from_labels(image: &Rgb32FImage, labels: Vec<u32>, count: usize) -> Self {
         let (width, height) = image.dimensions();

@@ -166,23 +166,24 @@ fn colour(text: &str) -> Result<Colour, String> {
     }
 }
 
-/// A finite number of seconds within [0, 3600].
-fn seconds(text: &str) -> Result<f64, String> {
+/// `text` as a finite number within `range`, else an error saying it must be `what` within it.
+fn bounded(text: &str, range: std::ops::RangeInclusive<f64>, what: &str) -> Result<f64, String> {
     let value: f64 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
-    if value.is_finite() && (0.0..=3600.0).contains(&value) {
+    if value.is_finite() && range.contains(&value) {
         Ok(value)
     } else {
-        Err(format!("{text} is not a number of seconds within 0 to 3600"))
+        Err(format!("{text} is not {what} within {} to {}", range.start(), range.end()))
     }
 }
 
+/// A finite number of seconds within [0, 3600].
+fn seconds(text: &str) -> Result<f64, String> {
+    bounded(text, 0.0..=3600.0, "a number of seconds")
+}
+
+/// A finite tolerance within [0, 8] pixels.
 fn tolerance(text: &str) -> Result<f32, String> {
-    let value: f32 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
-    if value.is_finite() && (0.0..=8.0).contains(&value) {
-        Ok(value)
-    } else {
-        Err(format!("{text} is not a tolerance within 0 to 8 pixels"))
-    }
+    bounded(text, 0.0..=8.0, "a tolerance in pixels").map(|value| value as f32)
 }
 
 fn main() -> ExitCode {
