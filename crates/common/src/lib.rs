@@ -2,9 +2,10 @@
 //! inverted ([`Rect`]: pixel boxes and unit-square bounds), the area of a polygon, reading an image at the working
 //! resolution from a file, bytes or pixels ([`decode`]), listing a folder of inputs ([`folder`]), quality measures ([`metrics`]: MSE,
 //! PSNR, SSIM), writing files so that no partial or hijacked file is ever left ([`write`]),
-//! the command-line programs' progress bar ([`progress`], behind the `progress` feature)
+//! line charts as SVG ([`chart`]), the command-line programs' progress bar ([`progress`], behind the `progress` feature)
 //! and their tests' helpers ([`testing`], behind the `testing` feature).
 
+pub mod chart;
 pub mod decode;
 pub mod folder;
 pub mod metrics;
