@@ -62,6 +62,22 @@ pub fn create_temporary(folder: &Path, stem: &str) -> std::io::Result<(File, Pat
     Err(last.unwrap_or_else(|| std::io::Error::other("no temporary name was free")))
 }
 
+/// A new folder `.{stem}.{random}` in `parent`, created exclusively (an existing folder or link
+/// of that name is never used), for scratch files whose names other programs need to choose
+/// (an extension a tool reads the format from): inside it, fixed names are safe.
+pub fn create_temporary_folder(parent: &Path, stem: &str) -> std::io::Result<PathBuf> {
+    let mut last = None;
+    for _ in 0..TEMPORARY_TRIES {
+        let candidate = parent.join(format!(".{stem}.{:016x}", random()));
+        match std::fs::create_dir(&candidate) {
+            Ok(()) => return Ok(candidate),
+            Err(err) if err.kind() == std::io::ErrorKind::AlreadyExists => last = Some(err),
+            Err(err) => return Err(err),
+        }
+    }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no temporary name was free")))
+}
+
 /// 64 unpredictable bits: std's randomly keyed hasher over the process, the time and a counter.
 fn random() -> u64 {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -146,6 +162,12 @@ mod tests {
         assert_ne!(first, second);
         let name = first.file_name().unwrap().to_string_lossy().into_owned();
         assert!(name.starts_with(".out.svg.") && name.ends_with(".tmp"), "{name}");
+        let (first, second) =
+            (create_temporary_folder(&dir, "work").unwrap(), create_temporary_folder(&dir, "work").unwrap());
+        assert_ne!(first, second);
+        assert!(first.is_dir() && std::fs::read_dir(&first).unwrap().count() == 0);
+        assert!(first.file_name().unwrap().to_string_lossy().starts_with(".work."));
+        assert!(create_temporary_folder(&dir.join("missing"), "work").is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use image::{Rgb, Rgb32FImage};
+use image::{Rgb, Rgb32FImage, RgbImage};
 use superpixel::{SlicError, SlicOptions, slic};
 
 /// Why a method could not draw an image.
@@ -80,20 +80,42 @@ pub struct Traced {
 }
 
 /// Renders an SVG document with resvg onto `width × height` (the document is scaled to fit),
-/// over white.
+/// over white. Text is not drawn: no method's drawing has any.
 pub fn render_svg(svg: &str, width: u32, height: u32) -> Result<Rgb32FImage, PeerError> {
-    let tree = resvg::usvg::Tree::from_str(svg, &resvg::usvg::Options::default())?;
-    let mut pixmap =
-        resvg::tiny_skia::Pixmap::new(width, height).ok_or(PeerError::Canvas { width, height })?;
-    pixmap.fill(resvg::tiny_skia::Color::WHITE);
-    let size = tree.size();
-    let scale =
-        resvg::tiny_skia::Transform::from_scale(width as f32 / size.width(), height as f32 / size.height());
-    resvg::render(&tree, scale, &mut pixmap.as_mut());
+    let pixmap = render_tree(svg, &resvg::usvg::Options::default(), Some((width, height)))?;
     Ok(Rgb32FImage::from_fn(width, height, |x, y| {
         let p = pixmap.pixel(x, y).expect("inside the canvas").demultiply();
         Rgb([p.red() as f32 / 255.0, p.green() as f32 / 255.0, p.blue() as f32 / 255.0])
     }))
+}
+
+/// Renders a chart (or any SVG with text) at its own size over white, with the system's fonts.
+pub fn render_chart(svg: &str) -> Result<RgbImage, PeerError> {
+    let mut options = resvg::usvg::Options::default();
+    options.fontdb_mut().load_system_fonts();
+    let pixmap = render_tree(svg, &options, None)?;
+    Ok(RgbImage::from_fn(pixmap.width(), pixmap.height(), |x, y| {
+        let p = pixmap.pixel(x, y).expect("inside the canvas").demultiply();
+        Rgb([p.red(), p.green(), p.blue()])
+    }))
+}
+
+/// `svg` drawn over white onto `size` pixels (the document scaled to fit), or at its own size.
+fn render_tree(
+    svg: &str,
+    options: &resvg::usvg::Options,
+    size: Option<(u32, u32)>,
+) -> Result<resvg::tiny_skia::Pixmap, PeerError> {
+    let tree = resvg::usvg::Tree::from_str(svg, options)?;
+    let own = tree.size();
+    let (width, height) = size.unwrap_or((own.width().ceil() as u32, own.height().ceil() as u32));
+    let mut pixmap =
+        resvg::tiny_skia::Pixmap::new(width, height).ok_or(PeerError::Canvas { width, height })?;
+    pixmap.fill(resvg::tiny_skia::Color::WHITE);
+    let scale =
+        resvg::tiny_skia::Transform::from_scale(width as f32 / own.width(), height as f32 / own.height());
+    resvg::render(&tree, scale, &mut pixmap.as_mut());
+    Ok(pixmap)
 }
 
 /// Number of closed shapes an SVG draws: the subpaths (moveto commands) of all `d` attributes,
@@ -110,28 +132,77 @@ pub fn available(program: &str) -> bool {
     Command::new(program).arg("--help").output().is_ok()
 }
 
+/// The vtracer settings the evaluation varies (everything else stays at vtracer's default:
+/// colour, stacked, spline).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct VtracerSettings {
+    /// Patches smaller than this many pixels are dropped (`--filter_speckle`, default 4).
+    pub filter_speckle: usize,
+    /// Significant bits per colour channel, 1 to 8 (`--color_precision`, default 6).
+    pub color_precision: u8,
+    /// Colour difference between layers (`--gradient_step`, default 16).
+    pub gradient_step: usize,
+}
+
+impl Default for VtracerSettings {
+    /// vtracer's own defaults.
+    fn default() -> Self {
+        Self { filter_speckle: 4, color_precision: 6, gradient_step: 16 }
+    }
+}
+
+impl VtracerSettings {
+    /// The grid eval's rate–distortion sweep draws vtracer's curve from: speckle sizes 0 to 16
+    /// (detail against bytes; vtracer refuses more than 16) at colour precisions 3, 4, 6 and 8
+    /// (fewer colours, fewer layers), the two knobs vtracer offers for file size.
+    pub fn sweep() -> Vec<Self> {
+        let mut grid = Vec::new();
+        for color_precision in [3, 4, 6, 8] {
+            for filter_speckle in [0, 2, 4, 8, 16] {
+                grid.push(Self { filter_speckle, color_precision, ..Self::default() });
+            }
+        }
+        grid
+    }
+
+    /// As the report names it.
+    pub fn label(&self) -> String {
+        format!("speckle {}, precision {}", self.filter_speckle, self.color_precision)
+    }
+}
+
+/// vtracer on a PNG with these settings.
+pub fn vtracer_with(png: &Path, settings: VtracerSettings, scratch: &Path) -> Result<Traced, PeerError> {
+    let VtracerSettings { filter_speckle, color_precision, gradient_step } = settings;
+    let out = scratch.join(format!("vtracer-{filter_speckle}-{color_precision}-{gradient_step}.svg"));
+    let started = Instant::now();
+    let status = Command::new("vtracer")
+        .args(["--input", &png.to_string_lossy(), "--output", &out.to_string_lossy()])
+        .args(["--filter_speckle", &filter_speckle.to_string()])
+        .args(["--color_precision", &color_precision.to_string()])
+        .args(["--gradient_step", &gradient_step.to_string()])
+        .output()
+        .map_err(PeerError::start("vtracer"))?;
+    let seconds = started.elapsed().as_secs_f64();
+    if !status.status.success() {
+        return Err(PeerError::failed("vtracer", &status));
+    }
+    let svg = std::fs::read_to_string(&out).map_err(PeerError::io(&out))?;
+    Ok(Traced { svg, seconds })
+}
+
 /// vtracer (colour, stacked, spline) on a PNG. With a shape budget, one knob is searched for
 /// at most `shapes` shapes and as many as possible: knob k sets the speckle filter to
 /// min(16, 4 + k) px and, past that, the colour gradient step to 16 + (k − 12) (fewer layers);
 /// `None` keeps vtracer's defaults (speckle 4, gradient step 16).
 pub fn vtracer(png: &Path, shapes: Option<usize>, scratch: &Path) -> Result<Traced, PeerError> {
-    let start = PeerError::start("vtracer");
-    let run = |knob: usize| -> Result<Traced, PeerError> {
-        let speckle = (4 + knob).min(16);
-        let gradient = (16 + knob.saturating_sub(12)).min(255);
-        let out = scratch.join(format!("vtracer-{knob}.svg"));
-        let started = Instant::now();
-        let status = Command::new("vtracer")
-            .args(["--input", &png.to_string_lossy(), "--output", &out.to_string_lossy()])
-            .args(["--filter_speckle", &speckle.to_string(), "--gradient_step", &gradient.to_string()])
-            .output()
-            .map_err(&start)?;
-        let seconds = started.elapsed().as_secs_f64();
-        if !status.status.success() {
-            return Err(PeerError::failed("vtracer", &status));
-        }
-        let svg = std::fs::read_to_string(&out).map_err(PeerError::io(&out))?;
-        Ok(Traced { svg, seconds })
+    let run = |knob: usize| {
+        let settings = VtracerSettings {
+            filter_speckle: (4 + knob).min(16),
+            gradient_step: (16 + knob.saturating_sub(12)).min(255),
+            ..VtracerSettings::default()
+        };
+        vtracer_with(png, settings, scratch)
     };
     match shapes {
         None => run(0),

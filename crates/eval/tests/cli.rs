@@ -13,7 +13,7 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
     let folder = dir.to_str().unwrap();
     let out = dir.join("report.md");
     // (flag and value, what stderr must name)
-    let cases: [(&[&str], &str); 12] = [
+    let cases: [(&[&str], &str); 14] = [
         (&["--paths", "0"], "--paths"),
         (&["--paths", "1"], "--paths"),
         (&["--paths", "1000000"], "--paths"),
@@ -26,6 +26,8 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
         (&["--size", "99999999"], "--size"),
         (&["--peers", "foo"], "foo"),
         (&["--limit", "x"], "--limit"),
+        (&["--sweep", "1"], "--sweep"),
+        (&["--sweep", "64,x"], "--sweep"),
     ];
     for (flags, name) in cases {
         let mut child = Command::new(EVAL)
@@ -125,5 +127,49 @@ fn svgs_are_what_infer_writes() {
             "{written}"
         );
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--sweep` adds a rate–distortion section, SuperSVG-B and the fallback alone at each budget
+/// (files grow with the budget), and its chart beside the report: an SVG, and the PNG of it.
+#[test]
+fn a_sweep_reports_each_budget_and_draws_the_chart() {
+    let dir = std::env::temp_dir().join(format!("supersvg-eval-sweep-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let picture =
+        image::RgbImage::from_fn(48, 32, |x, y| image::Rgb([(x * 5) as u8, (y * 7) as u8, (x * y) as u8]));
+    picture.save(dir.join("a.png")).unwrap();
+    let out = dir.join("report.md");
+    let result = Command::new(EVAL)
+        .arg(&dir)
+        .args(["--out", out.to_str().unwrap(), "--paths", "16", "--sweep", "4,16,64", "--size", "48"])
+        .args(["--peers", "fallback"])
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+    let report = std::fs::read_to_string(&out).unwrap();
+    let section = report.split("## Rate and distortion").nth(1).unwrap_or_else(|| panic!("{report}"));
+    for method in ["SuperSVG-B (ours)", "fallback alone (traced regions, mean colour)"] {
+        let kilobytes: Vec<f64> = ["4 paths", "16 paths", "64 paths"]
+            .iter()
+            .map(|setting| {
+                let row = format!("| {method} | {setting} |");
+                let line = section
+                    .lines()
+                    .find(|l| l.starts_with(&row))
+                    .unwrap_or_else(|| panic!("no {row} in {section}"));
+                line.split('|').map(str::trim).nth(3).unwrap().parse().unwrap()
+            })
+            .collect();
+        assert!(kilobytes[0] < kilobytes[1] && kilobytes[1] < kilobytes[2], "{method}: {kilobytes:?}");
+    }
+    let chart = std::fs::read_to_string(dir.join("report-rate.svg")).unwrap();
+    // A PSNR panel, and an LPIPS one where its weights are installed: one line per method in each.
+    let panels = chart.matches("against file size</text>").count();
+    assert!(panels >= 1 && chart.matches("<polyline").count() == 2 * panels, "{chart}");
+    let png = image::open(dir.join("report-rate.png")).unwrap();
+    let width: f64 = chart.split("width=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap();
+    assert_eq!(png.width(), width.ceil() as u32);
     std::fs::remove_dir_all(&dir).unwrap();
 }
