@@ -1,10 +1,13 @@
 //! The coarse stage: the background, then region after region in painter's order its fallback
-//! path and the coarse model's paths that draw it better.
+//! path and the coarse model's paths that draw it better; by default each such path is paid
+//! for with a region ([`Trade`]), so E_c draws only where it beats spending the same paths on
+//! regions.
 
 use burn::tensor::Device;
+use image::Rgb32FImage;
 use model::{CoarseModel, CropBatch, ModelConfig, crop_to_image};
 use raster::Path;
-use superpixel::{RegionCrop, worst_first};
+use superpixel::{Hierarchy, RegionCrop, Segmentation, worst_first};
 
 use crate::fallback::FallbackDrawing;
 use crate::scene::{Origin, Placed, Scene, Scope, region_errors};
@@ -17,6 +20,20 @@ pub struct CoarseBudget {
     /// The most paths the scene may hold when the stage ends (background and fallbacks
     /// included; they are always drawn).
     pub total: usize,
+    /// `None`: E_c draws only with what the regions leave of `total`. `Some`: E_c's paths are
+    /// bought with regions ([`Trade`]).
+    pub trade: Option<Trade>,
+}
+
+/// E_c's paths paid for with regions: the segmentation fills the budget, and each E_c path kept
+/// takes the place of a region, merged away where merging costs least. A path is worth its
+/// region only if it takes away more error than the merge adds, so E_c draws only where it
+/// beats spending the same paths on regions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trade {
+    /// The tolerance the fallback drawing of the merged regions is drawn with (as
+    /// [`FallbackDrawing::new`] takes it).
+    pub tolerance: Option<f32>,
 }
 
 /// Draws `scene` (which must be empty) from `fallback`, the fallback drawing of its
@@ -33,6 +50,12 @@ pub struct CoarseBudget {
 /// alone (a path can reach a later region where its fallback leaves a seam), they are all
 /// dropped.
 ///
+/// With a [`Trade`], the segmentation is meant to fill `total` on its own: the k paths kept
+/// are the k that took away the most error, for the k (up to `budget.paths`) at which their
+/// gain less the cost of merging k regions away ([`Hierarchy::flat_error`] of the
+/// segmentation's merge order) is largest. The scene is then drawn again on that cut with
+/// those paths, and kept only if it beats the fallback drawing of the full segmentation.
+///
 /// # Panics
 /// If the scene already holds paths.
 pub fn draw_coarse(
@@ -45,28 +68,102 @@ pub fn draw_coarse(
     device: &Device,
 ) {
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
+    let (target, segmentation) = (scene.target().clone(), scene.segmentation().clone());
     let spare = budget.paths.min(budget.total.saturating_sub(1 + fallback.order.len()));
-    let fallback_only = |scene: &Scene, fallback: FallbackDrawing| {
-        let (target, segmentation) = (scene.target().clone(), scene.segmentation().clone());
-        Scene::drawn(target, segmentation, fallback.placed(), fallback.canvas)
+    let wanted = match budget.trade {
+        Some(_) => budget.paths.min(segmentation.regions.len().saturating_sub(1)),
+        None => spare,
     };
-    if spare == 0 {
-        *scene = fallback_only(scene, fallback);
+    if wanted == 0 {
+        *scene = fallback_only(&target, &segmentation, fallback);
         return;
     }
-    let mut proposals = vec![Vec::new(); fallback.order.len()];
-    let chosen = worst_regions(scene, &fallback, spare);
+    let chosen = worst_regions(scene, &fallback, wanted);
     let crops: Vec<RegionCrop> = chosen.iter().map(|&r| scene.region_crop(config, r)).collect();
-    let proposed = propose(coarse, &crops, scene.target().dimensions(), batch, device);
+    let proposed = propose(coarse, &crops, target.dimensions(), batch, device);
+    let mut proposals = vec![Vec::new(); fallback.order.len()];
     for (&region, paths) in chosen.iter().zip(proposed) {
         proposals[region as usize] = paths;
     }
-    let (order, fallbacks, background) = (&fallback.order, &fallback.regions, fallback.background);
-    scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background });
-    let mut painted = vec![false; order.len()];
-    // (index in the scene, error it took away) of every E_c path that helped.
-    let mut gains: Vec<(usize, f64)> = Vec::new();
-    for (&region, shape) in order.iter().zip(fallbacks) {
+    let mut kept = paint_with(scene, &fallback, proposals);
+    kept.sort_by(|a, b| b.gain.total_cmp(&a.gain));
+    match budget.trade {
+        None => {
+            keep_best(scene, &kept, spare);
+            if scene.counts().coarse == 0 || scene.total_error() > fallback.error {
+                *scene = fallback_only(&target, &segmentation, fallback);
+            }
+        }
+        Some(Trade { tolerance }) => {
+            let hierarchy = Hierarchy::new(&target, segmentation.clone());
+            let regions = segmentation.regions.len();
+            let gains: Vec<f64> = kept.iter().take(wanted).map(|tried| tried.gain).collect();
+            let bought = worth_their_regions(&gains, |k| {
+                hierarchy.flat_error(regions - k) - hierarchy.flat_error(regions)
+            });
+            if bought == 0 {
+                *scene = fallback_only(&target, &segmentation, fallback);
+                return;
+            }
+            let cut = hierarchy.cut(&target, regions - bought);
+            let fine_to_cut = region_map(&segmentation, &cut);
+            let mut bought: Vec<&Tried> = kept[..bought].iter().collect();
+            bought.sort_by_key(|tried| tried.index);
+            let mut proposals = vec![Vec::new(); cut.regions.len()];
+            for tried in bought {
+                proposals[fine_to_cut[tried.region as usize] as usize].push(tried.path);
+            }
+            let merged_fallback = FallbackDrawing::new(&target, &cut, tolerance);
+            *scene = Scene::new(target.clone(), cut);
+            paint_with(scene, &merged_fallback, proposals);
+            if scene.counts().coarse == 0 || scene.total_error() > fallback.error {
+                *scene = fallback_only(&target, &segmentation, fallback);
+            }
+        }
+    }
+}
+
+/// How many of the paths with `gains` (largest first) to buy when the k-th costs the merges
+/// that free k regions (`merged(k)`: the error they add): the k with the largest gain less
+/// cost, 0 when no k gains more than it costs.
+fn worth_their_regions(gains: &[f64], merged: impl Fn(usize) -> f64) -> usize {
+    let mut best = (0, 0.0);
+    let mut gained = 0.0;
+    for (k, gain) in gains.iter().enumerate() {
+        gained += gain;
+        let net = gained - merged(k + 1);
+        if net > best.1 {
+            best = (k + 1, net);
+        }
+    }
+    best.0
+}
+
+/// The scene of `fallback` alone, the drawing of `segmentation` of `target`.
+fn fallback_only(target: &Rgb32FImage, segmentation: &Segmentation, fallback: FallbackDrawing) -> Scene {
+    Scene::drawn(target.clone(), segmentation.clone(), fallback.placed(), fallback.canvas)
+}
+
+/// An E_c path that lowered the error where it was tried.
+struct Tried {
+    /// Its place in the scene.
+    index: usize,
+    /// The error it took away.
+    gain: f64,
+    /// The region it was drawn for.
+    region: u32,
+    /// The path, in its fitted colour.
+    path: Path,
+}
+
+/// Paints the background, then region after region of `fallback` in painter's order its
+/// fallback path and each of `proposals[region]` that lowers the error over the regions painted
+/// so far (in its least-squares colour); returns the E_c paths kept.
+fn paint_with(scene: &mut Scene, fallback: &FallbackDrawing, mut proposals: Vec<Vec<Path>>) -> Vec<Tried> {
+    scene.push(Placed { shape: fallback.background.into(), region: None, origin: Origin::Background });
+    let mut painted = vec![false; fallback.order.len()];
+    let mut kept = Vec::new();
+    for (&region, shape) in fallback.order.iter().zip(&fallback.regions) {
         painted[region as usize] = true;
         if let Some(shape) = shape {
             scene.push(Placed { shape: shape.clone(), region: Some(region), origin: Origin::Fallback });
@@ -76,21 +173,32 @@ pub fn draw_coarse(
             let path = scene.fit_colour(&path, scope).unwrap_or(path);
             let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Coarse };
             if let Some(gain) = scene.try_push(placed, scope) {
-                gains.push((scene.len() - 1, gain));
+                kept.push(Tried { index: scene.len() - 1, gain, region, path });
             }
         }
     }
-    if gains.len() > spare {
-        gains.sort_by(|a, b| b.1.total_cmp(&a.1));
+    kept
+}
+
+/// Drops every E_c path of `scene` but the `most` of `kept` (sorted by gain, largest first).
+fn keep_best(scene: &mut Scene, kept: &[Tried], most: usize) {
+    if kept.len() > most {
         let mut dropped = vec![false; scene.len()];
-        for &(index, _) in &gains[spare..] {
-            dropped[index] = true;
+        for tried in &kept[most..] {
+            dropped[tried.index] = true;
         }
         scene.retain(|index, _| !dropped[index]);
     }
-    if scene.counts().coarse == 0 || scene.total_error() > fallback.error {
-        *scene = fallback_only(scene, fallback);
+}
+
+/// For each region of `fine`, the region of `coarse` that holds it (`coarse` is a cut of a
+/// hierarchy over `fine`, so each fine region lies in one).
+fn region_map(fine: &Segmentation, coarse: &Segmentation) -> Vec<u32> {
+    let mut map = vec![0; fine.regions.len()];
+    for (&f, &c) in fine.labels.iter().zip(&coarse.labels) {
+        map[f as usize] = c;
     }
+    map
 }
 
 /// The `count` regions of `scene`'s image whose pixels `fallback` gets most wrong.
@@ -122,4 +230,20 @@ fn propose(
         }
     }
     proposals
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paths_are_bought_while_they_gain_more_than_their_regions_cost() {
+        let merges = [0.0, 2.0, 6.0, 20.0];
+        let merged = |k: usize| merges[k];
+        // Nets: 10 − 2 = 8, 15 − 6 = 9, 16 − 20 = −4.
+        assert_eq!(worth_their_regions(&[10.0, 5.0, 1.0], merged), 2);
+        assert_eq!(worth_their_regions(&[1.5, 1.0, 0.5], merged), 0, "no path beats its region");
+        assert_eq!(worth_their_regions(&[], merged), 0);
+        assert_eq!(worth_their_regions(&[30.0, 5.0, 4.0], |_| 0.0), 3, "free merges buy every path");
+    }
 }

@@ -16,7 +16,7 @@ use raster::{SvgError, SvgOptions, to_svg_with};
 use serde::Serialize;
 use superpixel::SlicError;
 
-use crate::coarse::{CoarseBudget, draw_coarse};
+use crate::coarse::{CoarseBudget, Trade, draw_coarse};
 use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
 use crate::refine::draw_refinement;
@@ -70,8 +70,10 @@ pub struct BudgetParseError(pub String);
 pub struct Job {
     /// How many paths.
     pub paths: PathBudget,
-    /// Number of superpixels, below the path count (a fixed budget only); by default the
-    /// operating point's for the budget. Lowered to one per
+    /// Number of superpixels, below the path count (a fixed budget only). By default as many
+    /// as the budget holds beside E_r's share, and E_c's paths take the place of regions
+    /// where they draw better than the regions would ([`crate::coarse::Trade`]); a given count
+    /// is kept, and E_c draws only with what it leaves. Lowered to one per
     /// [`crate::segmentation::PIXELS_PER_REGION`] pixels, with a [`Warning`].
     pub regions: Option<usize>,
     /// How the budget is split; by default the one stored with the models.
@@ -261,8 +263,12 @@ pub fn run_with_progress(
             if let Some(regions) = job.regions.filter(|&r| r == 0 || r >= paths) {
                 return Err(VectorizeError::Regions { regions, paths });
             }
-            let asked = job.regions.unwrap_or_else(|| point.regions(paths).clamp(1, paths - 1));
-            if asked > most {
+            // Unless told how many, the regions fill what E_r leaves, and E_c buys its paths
+            // from them (`coarse::Trade`).
+            let filled = (paths - point.reserved_for_refine(paths)).saturating_sub(1);
+            let asked = job.regions.unwrap_or(filled).clamp(1, paths - 1);
+            // Only a count the user gave is said to be lowered: the default fills the budget.
+            if asked > most && job.regions.is_some() {
                 warnings.push(Warning::RegionsLowered { asked, used: most, width, height });
             }
             (paths, asked.min(most), None)
@@ -281,8 +287,13 @@ pub fn run_with_progress(
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let budget =
-        CoarseBudget { paths: point.coarse_paths(paths), total: paths - point.reserved_for_refine(paths) };
+    let trade = (matches!(job.paths, PathBudget::Count(_)) && job.regions.is_none())
+        .then_some(Trade { tolerance: job.tolerance });
+    let budget = CoarseBudget {
+        paths: point.coarse_paths(paths),
+        total: paths - point.reserved_for_refine(paths),
+        trade,
+    };
     draw_coarse(&models.coarse, &models.config, &mut scene, segmented.fallback, budget, job.batch, device);
     let coarse = clock.elapsed().as_secs_f64();
 

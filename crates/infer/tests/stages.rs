@@ -7,7 +7,7 @@ use burn::tensor::Device;
 use common::decode::load;
 use common::psnr;
 use image::{Rgb, Rgb32FImage};
-use infer::coarse::{CoarseBudget, draw_coarse};
+use infer::coarse::{CoarseBudget, Trade, draw_coarse};
 use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
 use infer::models::Models;
@@ -39,12 +39,12 @@ fn no_stage_lowers_the_psnr() {
 
         let drawing = FallbackDrawing::new(&image, &segmentation, None);
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
-        let no_coarse = CoarseBudget { paths: 0, total: 45 };
+        let no_coarse = CoarseBudget { paths: 0, total: 45, trade: None };
         draw_coarse(&models.coarse, &models.config, &mut fallback, drawing.clone(), no_coarse, 16, &device);
 
         // A budget of 3 E_c paths keeps (at most) the 3 that helped most: never more.
         let mut few = Scene::new(image.clone(), segmentation.clone());
-        let three = CoarseBudget { paths: 3, total: 45 };
+        let three = CoarseBudget { paths: 3, total: 45, trade: None };
         draw_coarse(&models.coarse, &models.config, &mut few, drawing.clone(), three, 16, &device);
         let few_coarse = few.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
         assert!((1..=3).contains(&few_coarse), "{few_coarse} E_c paths for a budget of 3");
@@ -56,7 +56,7 @@ fn no_stage_lowers_the_psnr() {
         );
 
         let mut scene = Scene::new(image.clone(), segmentation);
-        let coarse_budget = CoarseBudget { paths: 24, total: 45 };
+        let coarse_budget = CoarseBudget { paths: 24, total: 45, trade: None };
         draw_coarse(&models.coarse, &models.config, &mut scene, drawing, coarse_budget, 16, &device);
         let after_coarse = score(&scene);
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
@@ -81,6 +81,41 @@ fn no_stage_lowers_the_psnr() {
     }
 }
 
+/// Bought with regions, E_c's paths never draw worse than the regions they take the place of:
+/// the scene is, or beats, the fallback drawing of the whole segmentation, and each path kept
+/// is one region fewer.
+#[test]
+fn paths_bought_with_regions_draw_better_than_the_regions() {
+    let device = Device::flex();
+    let models = Models::bundled(false, &device).unwrap();
+    let total = 41;
+    let mut bought = 0;
+    for image in images() {
+        let options = SegmentOptions { oversegment: 3.0, ..Default::default() };
+        let segmentation = segment(&image, total - 1, &options).unwrap();
+        let regions = segmentation.regions.len();
+        let drawing = FallbackDrawing::new(&image, &segmentation, None);
+        let alone = psnr(
+            &Scene::drawn(image.clone(), segmentation.clone(), drawing.placed(), drawing.canvas.clone())
+                .canvas_image(),
+            &image,
+        );
+        let mut scene = Scene::new(image.clone(), segmentation);
+        let budget = CoarseBudget { paths: 12, total, trade: Some(Trade { tolerance: None }) };
+        draw_coarse(&models.coarse, &models.config, &mut scene, drawing, budget, 16, &device);
+        let drawn = psnr(&scene.canvas_image(), &image);
+        let coarse = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
+        assert!(drawn >= alone, "{drawn} dB with {coarse} E_c paths < {alone} dB for the regions alone");
+        assert!(scene.len() <= total && coarse <= 12, "{} paths, {coarse} of E_c", scene.len());
+        assert!(
+            scene.segmentation().regions.len() + coarse <= regions,
+            "each E_c path took a region's place"
+        );
+        bought += coarse;
+    }
+    assert!(bought > 0, "no image bought a path: the trade was not exercised");
+}
+
 #[test]
 fn fine_tuning_reports_the_psnr_it_reaches() {
     let device = Device::flex();
@@ -90,7 +125,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let mut scene = Scene::new(image.clone(), segmentation.clone());
     let models = Models::bundled(false, &device).unwrap();
     let drawing = FallbackDrawing::new(&image, &segmentation, None);
-    let no_coarse = CoarseBudget { paths: 0, total: regions + 1 };
+    let no_coarse = CoarseBudget { paths: 0, total: regions + 1, trade: None };
     draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);
     // Fine-tuning moves paths: a drawing of paths alone (the traced regions, each fitted with
     // one path, as fine-tuning itself starts from them) is what it must improve on.

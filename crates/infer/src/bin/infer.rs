@@ -63,9 +63,11 @@ struct Args {
     /// 8192 about a minute and 3.5 GB (2 cores).
     #[arg(long, default_value_t = 512, value_parser = working_size)]
     size: u32,
-    /// Number of superpixels, below `--paths` (default: the operating point stored with the
-    /// coarse model, for the budget). At most one per 16 pixels of the working image: more is
-    /// lowered, with a warning.
+    /// Number of superpixels, below `--paths`. By default the regions fill the budget (less
+    /// E_r's share of the operating point stored with the coarse model) and each E_c path kept
+    /// takes the place of a region, merged away where that costs least, only where the path
+    /// draws better than the region did; a given count is kept, and E_c draws only with what it
+    /// leaves. At most one per 16 pixels of the working image: more is lowered, with a warning.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..MAX_PATHS as u64))]
     regions: Option<u64>,
     /// Write a PNG rendering of the result (`.png` file, or a folder).
