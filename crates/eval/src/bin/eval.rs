@@ -637,7 +637,8 @@ fn rate_chart(points: &BTreeMap<Method, Vec<SweepPoint>>) -> String {
         .filter(|(_, _, value, _)| measured(*value))
         .map(|&(title, y_label, value, better)| {
             let mut series = Vec::new();
-            for (&method, sweep) in points {
+            // Ours last, so they are drawn over the peers.
+            for (&method, sweep) in points.iter().rev() {
                 let xy = |list: &[RatePoint]| {
                     list.iter().filter_map(|p| value(p).map(|v| (p.kilobytes, v))).collect()
                 };
@@ -709,13 +710,15 @@ fn rate_section(points: &BTreeMap<Method, Vec<SweepPoint>>, chart: &Path) -> Str
     let _ = writeln!(
         text,
         "\n### At vtracer's file sizes\n\nEach vtracer setting beside our methods at the same SVG size, read \
-         off their curves (linear in log KB between budgets; — where the size is outside what the sweep \
-         covers).\n\n| vtracer setting | SVG KB | vtracer PSNR / LPIPS | {} |\n| --- | ---: | ---: |{}",
+         off their curves (linear in log KB between budgets). Past the largest file a method drew, its \
+         largest drawing is shown, marked ≤ (a smaller file); — where the size is below what the sweep \
+         covers.\n\n| vtracer setting | SVG KB | vtracer PSNR / LPIPS | {} |\n| --- | ---: | ---: |{}",
         header.join(" | "),
         " ---: |".repeat(ours.len())
     );
-    // Per method: (sizes covered, PSNR above vtracer, LPIPS below vtracer).
-    let mut wins = vec![(0, 0, 0); ours.len()];
+    // Per method: (sizes covered, PSNR above vtracer, LPIPS below vtracer, settings past its
+    // largest file that its largest drawing beats on both).
+    let mut wins = vec![(0, 0, 0, 0); ours.len()];
     for SweepPoint { setting, point, .. } in vtracer {
         let cells: Vec<String> = ours
             .iter()
@@ -728,7 +731,20 @@ fn rate_section(points: &BTreeMap<Method, Vec<SweepPoint>>, chart: &Path) -> Str
                     wins.2 += usize::from(ours_lpips.zip(point.lpips).is_some_and(|(o, v)| o < v));
                     format!("{psnr:.2} ({:+.2}) / {}", psnr - point.psnr, lpips(ours_lpips))
                 }
-                None => "—".to_string(),
+                None => match curve.iter().max_by(|a, b| a.kilobytes.total_cmp(&b.kilobytes)) {
+                    Some(largest) if largest.kilobytes < point.kilobytes => {
+                        let beats = largest.psnr > point.psnr
+                            && largest.lpips.zip(point.lpips).is_some_and(|(o, v)| o < v);
+                        wins.3 += usize::from(beats);
+                        format!(
+                            "≤ {:.2} ({:+.2}) / {}",
+                            largest.psnr,
+                            largest.psnr - point.psnr,
+                            lpips(largest.lpips)
+                        )
+                    }
+                    _ => "—".to_string(),
+                },
             })
             .collect();
         let _ = writeln!(
@@ -742,11 +758,12 @@ fn rate_section(points: &BTreeMap<Method, Vec<SweepPoint>>, chart: &Path) -> Str
         );
     }
     text.push('\n');
-    for ((method, _), (covered, psnr, lpips)) in ours.iter().zip(wins) {
+    for ((method, _), (covered, psnr, lpips, beyond)) in ours.iter().zip(wins) {
         let _ = writeln!(
             text,
             "- {}: of the {} vtracer settings, {covered} fall within its sizes; at {psnr} of them its PSNR is \
-             higher, at {lpips} its LPIPS lower.",
+             higher, at {lpips} its LPIPS lower. Of those larger than its largest file, {beyond} draw worse \
+             than that smaller file on both measures.",
             method.name(),
             vtracer.len()
         );
@@ -841,6 +858,7 @@ mod tests {
                     vtracer(64, point(5.0, 20.0, 0.3)),
                     vtracer(8, point(10f64.powf(1.5), 34.0, 0.04)),
                     vtracer(1, point(100.0, 41.0, 0.01)),
+                    vtracer(0, point(400.0, 39.0, 0.03)),
                 ],
             ),
         ]);
@@ -855,7 +873,11 @@ mod tests {
             "{text}"
         );
         assert!(
-            text.contains("of the 3 vtracer settings, 2 fall within its sizes; at 1 of them its PSNR is higher, at 0 its LPIPS lower"),
+            text.contains("of the 4 vtracer settings, 2 fall within its sizes; at 1 of them its PSNR is higher, at 0 its LPIPS lower. Of those larger than its largest file, 1 draw worse"),
+            "{text}"
+        );
+        assert!(
+            text.contains("| speckle 0, precision 6 | 400.0 | 39.00 / 0.0300 | ≤ 40.00 (+1.00) / 0.0200 |"),
             "{text}"
         );
         let chart = rate_chart(&points);
