@@ -53,8 +53,10 @@ pub struct Trade {
 /// With a [`Trade`], the segmentation is meant to fill `total` on its own: the k paths kept
 /// are the k that took away the most error, for the k (up to `budget.paths`) at which their
 /// gain less the cost of merging k regions away ([`Hierarchy::flat_error`] of the
-/// segmentation's merge order) is largest. The scene is then drawn again on that cut with
-/// those paths, and kept only if it beats the fallback drawing of the full segmentation.
+/// segmentation's merge order) is largest. E_c first draws only the worst quarter of its
+/// regions ([`FIRST_ROUND`]) and goes on to the rest only where it buys paths for at least
+/// half of those. The scene is then drawn again on that cut with those paths, and kept only if
+/// it beats the fallback drawing of the full segmentation.
 ///
 /// # Panics
 /// If the scene already holds paths.
