@@ -11,14 +11,15 @@ use crate::config::InvalidSetting;
 /// coarse checkpoint.
 ///
 /// With a budget of N paths, one path is the background, every region gets one fallback path
-/// (its outline in its mean colour), `coarse_share` · N paths go to E_c — the paths it draws
-/// in the regions the fallback drawing gets most wrong that lower the error most, wherever they
-/// are — and `refine_share` · N paths are kept for E_r: the number of regions is
-/// N − ⌊N·coarse_share⌋ − ⌊N·refine_share⌋ − 1.
+/// (its outline in its mean colour), and `refine_share` · N paths are kept for E_r. Inference
+/// fills the rest with regions and lets E_c buy at most `coarse_share` · N paths with regions,
+/// each only where it draws better than the region it replaces (`infer::coarse::Trade`);
+/// [`OperatingPoint::regions`] is the fixed split, N − ⌊N·coarse_share⌋ − ⌊N·refine_share⌋ − 1
+/// regions, which the automatic budget plans with.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OperatingPoint {
-    /// Share of the budget for E_c's paths, in [0, 1) (0: E_c is not run).
+    /// Share of the budget E_c's paths may take, in [0, 1) (0: E_c is not run).
     pub coarse_share: f32,
     /// Share of the budget kept for E_r, in [0, 1) (0: no refinement).
     pub refine_share: f32,
