@@ -265,8 +265,7 @@ pub fn run_with_progress(
             }
             // Unless told how many, the regions fill what E_r leaves, and E_c buys its paths
             // from them (`coarse::Trade`).
-            let filled = (paths - point.reserved_for_refine(paths)).saturating_sub(1);
-            let asked = job.regions.unwrap_or(filled).clamp(1, paths - 1);
+            let asked = job.regions.unwrap_or_else(|| point.filling_regions(paths)).clamp(1, paths - 1);
             // Only a count the user gave is said to be lowered: the default fills the budget.
             if asked > most && job.regions.is_some() {
                 warnings.push(Warning::RegionsLowered { asked, used: most, width, height });
@@ -287,8 +286,7 @@ pub fn run_with_progress(
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let trade = (matches!(job.paths, PathBudget::Count(_)) && job.regions.is_none())
-        .then_some(Trade { tolerance: job.tolerance });
+    let trade = job.regions.is_none().then_some(Trade { tolerance: job.tolerance });
     let budget = CoarseBudget {
         paths: point.coarse_paths(paths),
         total: paths - point.reserved_for_refine(paths),

@@ -203,7 +203,7 @@ pub fn auto_budget(
     let max_paths = auto.max_paths.clamp(2, crate::MAX_PATHS);
     let pixels = image.width() as usize * image.height() as usize;
     let most = max_regions(image.width(), image.height());
-    let regions_for = |paths: usize| point.regions(paths).clamp(1, paths - 1).min(most);
+    let regions_for = |paths: usize| point.filling_regions(paths).clamp(1, paths - 1).min(most);
     let free = free_options(compactness);
     let hierarchy_for = |paths: usize| -> Result<Hierarchy, SlicError> {
         let asked = (regions_for(paths) as f64 * free.oversegment as f64).ceil() as usize;
@@ -266,7 +266,11 @@ mod tests {
         let two_colours = blocks(2, 48, 1);
         let few = auto_budget(&two_colours, &point, 30.0, &auto).unwrap();
         assert_eq!(few.paths, AUTO_FIRST, "four flat squares need no more than the first rung");
-        assert_eq!(few.free.regions.len(), point.regions(AUTO_FIRST), "the cut is the budget's regions");
+        assert_eq!(
+            few.free.regions.len(),
+            point.filling_regions(AUTO_FIRST),
+            "the cut is the budget's regions"
+        );
         let detailed = blocks(16, 8, 2);
         let many = auto_budget(&detailed, &point, 30.0, &auto).unwrap();
         assert!(many.paths >= 128, "256 flat squares got only {} paths", many.paths);

@@ -13,9 +13,8 @@ use crate::config::InvalidSetting;
 /// With a budget of N paths, one path is the background, every region gets one fallback path
 /// (its outline in its mean colour), and `refine_share` · N paths are kept for E_r. Inference
 /// fills the rest with regions and lets E_c buy at most `coarse_share` · N paths with regions,
-/// each only where it draws better than the region it replaces (`infer::coarse::Trade`);
-/// [`OperatingPoint::regions`] is the fixed split, N − ⌊N·coarse_share⌋ − ⌊N·refine_share⌋ − 1
-/// regions, which the automatic budget plans with.
+/// each only where it draws better than the region it replaces (`infer::coarse::Trade`): the
+/// regions start at [`OperatingPoint::filling_regions`], N − ⌊N·refine_share⌋ − 1.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OperatingPoint {
@@ -72,10 +71,11 @@ impl OperatingPoint {
         SegmentOptions { compactness, oversegment: self.oversegment, min_compactness: self.min_compactness }
     }
 
-    /// Number of regions for a budget of `paths` (at least one).
-    pub fn regions(&self, paths: usize) -> usize {
-        let models = self.coarse_paths(paths) + self.reserved_for_refine(paths);
-        paths.saturating_sub(models + 1).max(1)
+    /// Number of regions for a budget of `paths` when they fill it beside E_r's share and E_c
+    /// buys its paths from them (`infer::coarse::Trade`): N − ⌊N·refine_share⌋ − 1, at least
+    /// one.
+    pub fn filling_regions(&self, paths: usize) -> usize {
+        paths.saturating_sub(self.reserved_for_refine(paths) + 1).max(1)
     }
 
     /// The most E_c paths for a budget of `paths`.
@@ -96,12 +96,13 @@ mod tests {
     #[test]
     fn regions_leave_room_for_every_stage() {
         let mosaic = OperatingPoint::default();
-        assert_eq!(mosaic.regions(500), 499);
+        assert_eq!(mosaic.filling_regions(500), 499);
         let split =
             OperatingPoint { coarse_share: 0.1, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
-        assert_eq!(split.regions(500), 349); // 1 + 349 + 50 + 100 = 500
+        // 1 + 399 + 100 = 500; E_c's 50 are bought from the 399.
+        assert_eq!(split.filling_regions(500), 399);
         assert_eq!((split.coarse_paths(500), split.reserved_for_refine(500)), (50, 100));
-        assert_eq!(split.regions(2), 1);
+        assert_eq!(split.filling_regions(2), 1);
         assert!(OperatingPoint { refine_share: 1.0, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { coarse_share: -0.1, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { coarse_share: 0.5, refine_share: 0.5, ..mosaic }.validate().is_err());
