@@ -50,27 +50,31 @@ const TEMPORARY_TRIES: usize = 16;
 /// A new file `.{stem}.{random}.tmp` in `folder`, created exclusively (`O_EXCL`: an existing
 /// file or link of that name is never opened, so a planted link is never followed), and its path.
 pub fn create_temporary(folder: &Path, stem: &str) -> std::io::Result<(File, PathBuf)> {
-    let mut last = None;
-    for _ in 0..TEMPORARY_TRIES {
-        let candidate = folder.join(format!(".{stem}.{:016x}.tmp", random()));
-        match OpenOptions::new().write(true).create_new(true).open(&candidate) {
-            Ok(file) => return Ok((file, candidate)),
-            Err(err) if err.kind() == std::io::ErrorKind::AlreadyExists => last = Some(err),
-            Err(err) => return Err(err),
-        }
-    }
-    Err(last.unwrap_or_else(|| std::io::Error::other("no temporary name was free")))
+    fresh(
+        || folder.join(format!(".{stem}.{:016x}.tmp", random())),
+        |path| OpenOptions::new().write(true).create_new(true).open(path),
+    )
 }
 
 /// A new folder `.{stem}.{random}` in `parent`, created exclusively (an existing folder or link
 /// of that name is never used), for scratch files whose names other programs need to choose
 /// (an extension a tool reads the format from): inside it, fixed names are safe.
 pub fn create_temporary_folder(parent: &Path, stem: &str) -> std::io::Result<PathBuf> {
+    fresh(|| parent.join(format!(".{stem}.{:016x}", random())), |path| std::fs::create_dir(path))
+        .map(|((), path)| path)
+}
+
+/// `create` on names from `name` until one did not exist ([`TEMPORARY_TRIES`] at most): what
+/// it made, and where.
+fn fresh<T>(
+    name: impl Fn() -> PathBuf,
+    create: impl Fn(&Path) -> std::io::Result<T>,
+) -> std::io::Result<(T, PathBuf)> {
     let mut last = None;
     for _ in 0..TEMPORARY_TRIES {
-        let candidate = parent.join(format!(".{stem}.{:016x}", random()));
-        match std::fs::create_dir(&candidate) {
-            Ok(()) => return Ok(candidate),
+        let candidate = name();
+        match create(&candidate) {
+            Ok(made) => return Ok((made, candidate)),
             Err(err) if err.kind() == std::io::ErrorKind::AlreadyExists => last = Some(err),
             Err(err) => return Err(err),
         }
