@@ -179,25 +179,27 @@ impl PartialOrd for Candidate {
 }
 
 /// Regions being merged: union-find over labels, each root's pixel count, colour sum and
-/// perimeter (pixel edges), the length of border each pair of touching roots shares, each
-/// root's cheapest allowed merge, and a queue of those.
+/// perimeter (pixel edges), the length of border each pair of touching roots shares, and a
+/// queue of merges with at most one live entry per root.
 ///
-/// The queue holds one entry per root (its cheapest merge), not one per touching pair: after a
-/// merge only the kept root's neighbours are looked at again. A root's merge that got dearer
-/// is not queued again at once: its old entry comes out of the queue first and is replaced
-/// then, so a root whose merge changes many times between pops costs one entry. With an entry
-/// per pair, every merge into a region queued all of its neighbours anew, and on flat art,
-/// where one background region grows through thousands of free merges, popping those stale
-/// entries was three quarters of `infer`'s time (an emoji at 500 paths: 4.4 s of 6).
+/// The queue is lazy. Every touching pair is *covered*: some live entry is at most its cost (by
+/// the queue's order). A merge changes only the costs of pairs with the root kept, and that
+/// root's cheapest merge is queued exactly, so its pairs stay covered; an entry is checked when
+/// it comes out (its pair still touching, its cost still the pair's cost) and, when it is not,
+/// its root's cheapest merge is found and queued then. An entry that passes is the cheapest
+/// pair of all. Neighbours of a region that grows are not costed again at every merge: on flat
+/// art one background region grows through thousands of merges and has thousands of
+/// neighbours, and recosting them all at every merge was most of segmenting an emoji.
 struct Merging {
     parent: Vec<u32>,
     size: Vec<f64>,
     sum: Vec<[f64; 3]>,
+    /// Each root's `sum / size`, kept so that costing a pair divides nothing (costing is most of
+    /// merging's time: a region that grows is costed against all of its neighbours each time).
+    mean: Vec<[f64; 3]>,
     perimeter: Vec<f64>,
     borders: Vec<BTreeMap<u32, f64>>,
-    /// Each root's cheapest allowed merge (cost, partner), by the queue's order.
-    best: Vec<Option<(f64, u32)>>,
-    /// Each root's latest queued entry, never dearer than its `best`: the others are stale.
+    /// Each root's live entry in the queue (cost, partner); the queue's other entries are stale.
     queued: Vec<Option<(f64, u32)>>,
     queue: BinaryHeap<Candidate>,
     /// Merges whose union would be less compact than this are passed over.
@@ -208,8 +210,9 @@ impl Merging {
     fn new(segmentation: &Segmentation, min_compactness: f64) -> Self {
         let count = segmentation.regions.len();
         let size = segmentation.regions.iter().map(|r| r.pixels as f64).collect();
-        let sum =
+        let sum: Vec<[f64; 3]> =
             segmentation.regions.iter().map(|r| r.mean_color.map(|c| c as f64 * r.pixels as f64)).collect();
+        let mean = sum.iter().zip(&size).map(|(s, &n): (&[f64; 3], &f64)| s.map(|c| c / n)).collect();
         let mut borders = vec![BTreeMap::new(); count];
         let mut perimeter = vec![0.0; count];
         let (width, height) = (segmentation.width as usize, segmentation.height as usize);
@@ -230,9 +233,9 @@ impl Merging {
             parent: (0..count as u32).collect(),
             size,
             sum,
+            mean,
             perimeter,
             borders,
-            best: vec![None; count],
             queued: vec![None; count],
             queue: BinaryHeap::new(),
             min_compactness,
@@ -255,7 +258,7 @@ impl Merging {
             if self.parent[a as usize] == a {
                 self.queued[a as usize] = None;
                 let cheapest = self.cheapest(a);
-                self.set_best(a, cheapest);
+                self.enqueue(a, cheapest);
             }
         }
     }
@@ -265,7 +268,8 @@ impl Merging {
     fn cost(&self, a: u32, b: u32) -> f64 {
         let (ia, ib) = (a as usize, b as usize);
         let (na, nb) = (self.size[ia], self.size[ib]);
-        let difference: f64 = (0..3).map(|c| (self.sum[ia][c] / na - self.sum[ib][c] / nb).powi(2)).sum();
+        let (ma, mb) = (&self.mean[ia], &self.mean[ib]);
+        let difference: f64 = (0..3).map(|c| (ma[c] - mb[c]).powi(2)).sum();
         na * nb / (na + nb) * difference
     }
 
@@ -273,6 +277,9 @@ impl Merging {
     /// is compact enough: the isoperimetric quotient 4πn/P² (1 for a disc, π/4 for a square of
     /// pixels, small for thin or ragged shapes) of at least the floor.
     fn allowed_cost(&self, a: u32, b: u32, shared: f64) -> Option<f64> {
+        if self.min_compactness <= 0.0 {
+            return Some(self.cost(a, b));
+        }
         let (ia, ib) = (a as usize, b as usize);
         let perimeter = self.perimeter[ia] + self.perimeter[ib] - 2.0 * shared;
         let compactness =
@@ -293,14 +300,13 @@ impl Merging {
         best
     }
 
-    /// Makes `best` root `a`'s cheapest merge, queued if it comes before the root's queued
-    /// entry (a dearer one is queued when that entry comes out).
-    fn set_best(&mut self, a: u32, best: Option<(f64, u32)>) {
-        self.best[a as usize] = best;
-        if let Some((cost, b)) = best
+    /// Queues `merge` as root `a`'s entry if it comes before the root's live entry (which
+    /// covers `a`'s pairs until it comes out).
+    fn enqueue(&mut self, a: u32, merge: Option<(f64, u32)>) {
+        if let Some((cost, b)) = merge
             && precedes((cost, a, b), self.queued[a as usize].map(|(c, p)| (c, a, p)))
         {
-            self.queued[a as usize] = best;
+            self.queued[a as usize] = merge;
             self.queue.push(Candidate { cost, a, b });
         }
     }
@@ -317,10 +323,12 @@ impl Merging {
                     continue;
                 }
                 self.queued[a as usize] = None;
-                if self.best[a as usize] != Some((cost, b)) {
-                    // Dearer since it was queued: queued again as it is now.
-                    let best = self.best[a as usize];
-                    self.set_best(a, best);
+                let shared = self.borders[a as usize].get(&b).copied();
+                let now = shared.and_then(|shared| self.allowed_cost(a, b, shared));
+                if self.parent[b as usize] != b || now != Some(cost) {
+                    // Its pair is gone or costs otherwise: queued again as `a` is now.
+                    let cheapest = self.cheapest(a);
+                    self.enqueue(a, cheapest);
                 } else {
                     let (na, nb) = (self.borders[a as usize].len(), self.borders[b as usize].len());
                     let (kept, merged) = if (nb, a) > (na, b) { (b, a) } else { (a, b) };
@@ -336,8 +344,8 @@ impl Merging {
         }
     }
 
-    /// Merges root `b` into root `a`, then updates the cheapest merges that can have changed:
-    /// `a`'s, and its neighbours' (only their merge with `a` changed).
+    /// Merges root `b` into root `a`, then queues `a`'s cheapest merge (only `a`'s pairs
+    /// changed; its neighbours' entries are checked when they come out).
     fn join(&mut self, a: u32, b: u32) {
         let (ia, ib) = (a as usize, b as usize);
         let shared = self.borders[ia].get(&b).copied().unwrap_or(0.0);
@@ -347,7 +355,7 @@ impl Merging {
         for c in 0..3 {
             self.sum[ia][c] += self.sum[ib][c];
         }
-        self.best[ib] = None;
+        self.mean[ia] = self.sum[ia].map(|c| c / self.size[ia]);
         self.queued[ib] = None;
         let moved = std::mem::take(&mut self.borders[ib]);
         for (other, length) in moved {
@@ -361,25 +369,7 @@ impl Merging {
         }
         self.borders[ia].remove(&b);
         let cheapest = self.cheapest(a);
-        self.set_best(a, cheapest);
-        let around: Vec<(u32, f64)> = self.borders[ia].iter().map(|(&x, &length)| (x, length)).collect();
-        for (x, length) in around {
-            let with_a = self.allowed_cost(x, a, length);
-            let best = match self.best[x as usize] {
-                // Its cheapest was the pair that changed: still so if it got no dearer.
-                Some((cost, partner)) if partner == a || partner == b => match with_a {
-                    Some(now) if partner == a && now <= cost => Some((now, a)),
-                    _ => self.cheapest(x),
-                },
-                // Unchanged, unless the new pair beats it.
-                Some((cost, partner)) => match with_a {
-                    Some(now) if precedes((now, x, a), Some((cost, x, partner))) => Some((now, a)),
-                    _ => Some((cost, partner)),
-                },
-                None => with_a.map(|now| (now, a)),
-            };
-            self.set_best(x, best);
-        }
+        self.enqueue(a, cheapest);
     }
 }
 
@@ -474,13 +464,23 @@ mod tests {
             let i = (x * 7 + y * 13 + (x * y) % 5) as usize;
             Rgb([palette[i % 4], palette[(i / 2) % 4], palette[(x / 4 + y / 3) as usize % 4]])
         });
-        let labels: Vec<u32> = (0..11 * 9).collect();
-        let base = Segmentation::from_labels(&image, labels, 11 * 9);
-        for floor in [0.0, 0.3, 0.5, 0.6, 0.7, 0.75] {
-            let mut merging = Merging::new(&base, floor);
-            let merges: Vec<(u32, u32, f64)> = std::iter::from_fn(|| merging.merge_cheapest()).collect();
-            assert_eq!(merges.len(), 11 * 9 - 1, "down to one region");
-            assert_eq!(merges, brute_force(&base, floor), "floor {floor}");
+        // A photo's case: every colour different, so a region's growth changes which
+        // neighbour is its cheapest (what the queue learns only when an entry comes out).
+        let noise = Rgb32FImage::from_fn(11, 9, |x, y| {
+            let h = |c: u32| {
+                ((x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503) ^ (c * 97)) % 1009) as f32 / 1008.0
+            };
+            Rgb([h(1), h(2), h(3)])
+        });
+        for (name, image) in [("palette", image), ("noise", noise)] {
+            let labels: Vec<u32> = (0..11 * 9).collect();
+            let base = Segmentation::from_labels(&image, labels, 11 * 9);
+            for floor in [0.0, 0.3, 0.5, 0.6, 0.7, 0.75] {
+                let mut merging = Merging::new(&base, floor);
+                let merges: Vec<(u32, u32, f64)> = std::iter::from_fn(|| merging.merge_cheapest()).collect();
+                assert_eq!(merges.len(), 11 * 9 - 1, "down to one region");
+                assert_eq!(merges, brute_force(&base, floor), "{name}, floor {floor}");
+            }
         }
     }
 
