@@ -22,14 +22,6 @@ pub fn max_regions(width: u32, height: u32) -> usize {
     (width as usize * height as usize / PIXELS_PER_REGION).max(1)
 }
 
-/// The SLIC compactness of the plain-SLIC candidates of [`choose_segmentation`], as fractions of
-/// the method's: less compact regions follow colour edges instead of staying round, which flat
-/// art rewards. On the 31 emoji of data/eval at the stored operating point, one extra candidate
-/// at 1/2 or 1/3 of 30 gains about 1 dB at 500 paths, these three 1.4 / 1.0 dB at 500 / 2000
-/// (docs/operating-point.md, measured when regions were fitted with one path); 1/6 alone gained
-/// 0.3. Each candidate costs one SLIC (and its merging); only the winner is traced and rendered.
-const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
-
 /// The candidate of [`choose_segmentation`] whose regions take any shape: SLIC for this many
 /// times the regions at a third of the compactness, merged by colour with no floor on
 /// compactness, so that regions follow the image's colour edges as far as the count allows.
@@ -44,15 +36,6 @@ fn free_options(compactness: f32) -> SegmentOptions {
     SegmentOptions { compactness: compactness / 3.0, oversegment: FREE_OVERSEGMENT, min_compactness: 0.0 }
 }
 
-/// How [`choose_segmentation`]'s candidates besides the free one are made: merged by colour as
-/// `point` makes them (if it oversegments), then plain SLIC at each of [`PLAIN_COMPACTNESS`] ×
-/// `compactness`.
-fn shaped_candidates(point: &OperatingPoint, compactness: f32) -> impl Iterator<Item = SegmentOptions> {
-    let plain = OperatingPoint { oversegment: 1.0, ..*point };
-    let merged = (point.oversegment > 1.0).then(|| point.segment_options(compactness));
-    merged.into_iter().chain(PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction)))
-}
-
 /// A segmentation of an image with its fallback drawing (traced, rendered and scored once).
 pub struct Segmented {
     /// The regions.
@@ -63,9 +46,16 @@ pub struct Segmented {
 
 /// `image` split into `regions` superpixels: of the candidates — merged freely
 /// ([`FREE_OVERSEGMENT`]; `free` when the caller already cut it, as the automatic budget does),
-/// merged by colour as `point` makes them, plain SLIC at several compactnesses — the one whose
-/// regions, each filled with its mean colour, draw it best (least squared error), with its
-/// fallback drawing (the only candidate traced and rendered).
+/// as `point` segments (SLIC at `compactness` for `oversegment` × the regions, merged by colour
+/// above its compactness floor), and on flat art ([`PLAIN_FROM_PSNR`]) plain SLIC at several
+/// compactnesses — the one whose regions, each filled with its mean colour, draw it best (least
+/// squared error), with its fallback drawing (the only candidate traced and rendered).
+///
+/// The second pays on flat art at a few hundred regions and fewer: on the 31 emoji of
+/// data/eval, by the flat-fill error at 15 to 127 regions, the free candidate alone is 1.1–3.8 dB
+/// worse than the best of all six, and with the second beside it 0.08–0.44 dB worse; on the
+/// photos the free one was the best at every count from 7 to 1999 on all 8 (one exception:
+/// 0.02 dB at 7).
 ///
 /// An image longer than [`CHOICE_SIDE`] has the candidates compared on a copy of that size
 /// (when the copy still has [`CHOICE_PIXELS_PER_REGION`] pixels a region), and only the winner
@@ -121,7 +111,13 @@ fn best_candidate(
     // boundaries (staircases cut, 0.1–0.3 dB), and it chooses as tracing and rendering every
     // candidate did on data/eval (the same SVGs), at the cost of one pass over the pixels.
     let mut best = (free.flat_error(image), free, None);
-    for options in shaped_candidates(point, compactness) {
+    let pixels = 3 * image.width() as usize * image.height() as usize;
+    let flat_art = common::psnr_of_mse(best.0 / pixels as f64) >= PLAIN_FROM_PSNR;
+    let plain = OperatingPoint { oversegment: 1.0, ..*point };
+    let few = flat_art.then_some(PLAIN_COMPACTNESS).into_iter().flatten();
+    let others = std::iter::once(point.segment_options(compactness))
+        .chain(few.map(|fraction| plain.segment_options(compactness * fraction)));
+    for options in others {
         let candidate = segment(image, regions, &options)?;
         let error = candidate.flat_error(image);
         if error < best.0 {
@@ -130,6 +126,21 @@ fn best_candidate(
     }
     Ok((best.1, best.2))
 }
+
+/// When the freely merged candidate's regions, each filled with its mean colour, draw the
+/// image at this PSNR (dB) or better, [`choose_segmentation`] also tries plain SLIC at each of
+/// [`PLAIN_COMPACTNESS`] × the compactness. That is flat art (the automatic budget's "close
+/// enough"), where plain SLIC's regions sometimes win: on the 31 emoji of data/eval, by the
+/// flat-fill error, on 3–11 of them at 7 to 255 regions, and trying them at every budget keeps
+/// `--paths auto` at 35.34 dB where never trying them gives 35.11. On the photos (about 25 dB
+/// at 500 paths, 28.5 at 2000) they never won at any count, and the four SLICs were 0.23 s of
+/// a photo's 0.48 s of segmenting at 500 paths.
+const PLAIN_FROM_PSNR: f64 = 30.0;
+
+/// The SLIC compactness of [`choose_segmentation`]'s plain-SLIC candidates ([`PLAIN_FROM_PSNR`]), as
+/// fractions of the method's: less compact regions follow colour edges instead of staying round,
+/// which flat art rewards.
+const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
 
 /// `segmentation` with its fallback drawing (boundaries fitted within `tolerance` pixels, if given).
 fn score(image: &Rgb32FImage, segmentation: Segmentation, tolerance: Option<f32>) -> Segmented {
@@ -293,42 +304,54 @@ mod tests {
 
     #[test]
     fn the_chosen_segmentation_draws_no_worse_than_any_candidate() {
-        let image = bands_and_disc();
         let point = OperatingPoint { oversegment: 3.0, min_compactness: 0.3, ..OperatingPoint::default() };
-        let chosen = choose_segmentation(&image, 24, &point, 30.0, None, None).unwrap();
-        assert_eq!(chosen.fallback.regions.len(), chosen.segmentation.regions.len());
-        let candidates: Vec<SegmentOptions> =
-            std::iter::once(free_options(30.0)).chain(shaped_candidates(&point, 30.0)).collect();
-        assert_eq!(
-            candidates.len(),
-            2 + PLAIN_COMPACTNESS.len(),
-            "the free and the merged candidates, then the plain ones"
-        );
-        let segmentations: Vec<Segmentation> =
-            candidates.iter().map(|options| segment(&image, 24, options).unwrap()).collect();
-        // The rule: the least flat-fill error.
-        let chosen_flat = chosen.segmentation.flat_error(&image);
-        assert!(segmentations.iter().all(|s| chosen_flat <= s.flat_error(&image)));
-        // What the rule stands for: the traced drawing that draws best (every candidate drawn).
-        let errors: Vec<f64> = segmentations
-            .iter()
-            .map(|segmentation| FallbackDrawing::new(&image, segmentation, None).error)
-            .collect();
-        for (options, error) in candidates.iter().zip(&errors) {
+        let plain = OperatingPoint { oversegment: 1.0, ..point };
+        let pixels = (3 * 96 * 96) as f64;
+        let regions = 24;
+        // 24 regions cannot follow the bands (far from flat art by PLAIN_FROM_PSNR), but can
+        // draw four squares exactly (flat art: the plain candidates are tried).
+        let mut flat_art = Vec::new();
+        for image in [bands_and_disc(), blocks(2, 48, 1)] {
+            let chosen = choose_segmentation(&image, regions, &point, 30.0, None, None).unwrap();
+            assert_eq!(chosen.fallback.regions.len(), chosen.segmentation.regions.len());
+            let free = segment(&image, regions, &free_options(30.0)).unwrap();
+            let flat = common::psnr_of_mse(free.flat_error(&image) / pixels) >= PLAIN_FROM_PSNR;
+            flat_art.push(flat);
+            let tried = flat.then_some(PLAIN_COMPACTNESS).into_iter().flatten();
+            let candidates: Vec<SegmentOptions> = [free_options(30.0), point.segment_options(30.0)]
+                .into_iter()
+                .chain(tried.map(|fraction| plain.segment_options(30.0 * fraction)))
+                .collect();
+            let segmentations: Vec<Segmentation> =
+                candidates.iter().map(|options| segment(&image, regions, options).unwrap()).collect();
+            // The rule: the least flat-fill error.
+            let chosen_flat = chosen.segmentation.flat_error(&image);
+            assert!(segmentations.iter().all(|s| chosen_flat <= s.flat_error(&image)));
+            // What the rule stands for: the traced drawing that draws best (every candidate drawn).
+            for (options, segmentation) in candidates.iter().zip(&segmentations) {
+                let error = FallbackDrawing::new(&image, segmentation, None).error;
+                assert!(
+                    chosen.fallback.error <= error,
+                    "chose {}, but {options:?} draws {error}",
+                    chosen.fallback.error
+                );
+            }
+            // And what choosing buys where round regions cannot follow the picture: better than
+            // the method's own superpixels (plain SLIC at 30).
+            let method = segment(&image, regions, &SegmentOptions::default()).unwrap();
+            let method_error = FallbackDrawing::new(&image, &method, None).error;
             assert!(
-                chosen.fallback.error <= *error,
-                "chose {}, but {options:?} draws {error}",
+                flat || chosen.fallback.error < method_error,
+                "{} against plain SLIC's {method_error}",
                 chosen.fallback.error
             );
+            // The score is the exact rendering's error.
+            let drawn =
+                image::DynamicImage::ImageRgb8(render_exact(&chosen.fallback.paths(), 96, 96, [1.0; 3]));
+            let mse = common::mse(&drawn.to_rgb32f(), &image);
+            assert!((mse - chosen.fallback.mse()).abs() < 1e-9, "{mse} vs {}", chosen.fallback.mse());
         }
-        assert!(
-            chosen.fallback.error < errors[1],
-            "on flat art a less compact candidate should beat plain SLIC at 30: {errors:?}"
-        );
-        // The score is the exact rendering's error.
-        let drawn = image::DynamicImage::ImageRgb8(render_exact(&chosen.fallback.paths(), 96, 96, [1.0; 3]));
-        let mse = common::mse(&drawn.to_rgb32f(), &image);
-        assert!((mse - chosen.fallback.mse()).abs() < 1e-9, "{mse} vs {}", chosen.fallback.mse());
+        assert_eq!(flat_art, [false, true], "one picture on each side of PLAIN_FROM_PSNR");
     }
 
     #[test]
