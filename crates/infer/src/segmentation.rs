@@ -111,8 +111,7 @@ fn best_candidate(
     // boundaries (staircases cut, 0.1–0.3 dB), and it chooses as tracing and rendering every
     // candidate did on data/eval (the same SVGs), at the cost of one pass over the pixels.
     let mut best = (free.flat_error(image), free, None);
-    let pixels = 3 * image.width() as usize * image.height() as usize;
-    let flat_art = common::psnr_of_mse(best.0 / pixels as f64) >= PLAIN_FROM_PSNR;
+    let flat_art = flat_psnr(best.0, image) >= PLAIN_FROM_PSNR;
     let plain = OperatingPoint { oversegment: 1.0, ..*point };
     let few = flat_art.then_some(PLAIN_COMPACTNESS).into_iter().flatten();
     let others = std::iter::once(point.segment_options(compactness))
@@ -141,6 +140,12 @@ const PLAIN_FROM_PSNR: f64 = 30.0;
 /// fractions of the method's: less compact regions follow colour edges instead of staying round,
 /// which flat art rewards.
 const PLAIN_COMPACTNESS: [f32; 4] = [1.0, 2.0 / 3.0, 1.0 / 2.0, 1.0 / 3.0];
+
+/// The PSNR (dB) of a flat fill of `image` whose squared RGB error, summed over its pixels, is
+/// `error` ([`Segmentation::flat_error`], [`Hierarchy::flat_error`]).
+fn flat_psnr(error: f64, image: &Rgb32FImage) -> f64 {
+    common::psnr_of_mse(error / (3 * image.width() as usize * image.height() as usize) as f64)
+}
 
 /// `segmentation` with its fallback drawing (boundaries fitted within `tolerance` pixels, if given).
 fn score(image: &Rgb32FImage, segmentation: Segmentation, tolerance: Option<f32>) -> Segmented {
@@ -225,9 +230,8 @@ pub fn auto_budget(
         };
         Ok(Hierarchy::new(image, slic(image, &options)?))
     };
-    let quality = |hierarchy: &Hierarchy, paths: usize| {
-        common::psnr_of_mse(hierarchy.flat_error(regions_for(paths)) / (3 * pixels) as f64)
-    };
+    let quality =
+        |hierarchy: &Hierarchy, paths: usize| flat_psnr(hierarchy.flat_error(regions_for(paths)), image);
     // (the largest budget it was over-segmented for, the hierarchy), finest last.
     let mut hierarchies = vec![(AUTO_STAGE.min(max_paths), hierarchy_for(AUTO_STAGE.min(max_paths))?)];
     let mut ladder: Vec<(usize, f64)> = Vec::new();
@@ -306,7 +310,6 @@ mod tests {
     fn the_chosen_segmentation_draws_no_worse_than_any_candidate() {
         let point = OperatingPoint { oversegment: 3.0, min_compactness: 0.3, ..OperatingPoint::default() };
         let plain = OperatingPoint { oversegment: 1.0, ..point };
-        let pixels = (3 * 96 * 96) as f64;
         let regions = 24;
         // 24 regions cannot follow the bands (far from flat art by PLAIN_FROM_PSNR), but can
         // draw four squares exactly (flat art: the plain candidates are tried).
@@ -315,7 +318,7 @@ mod tests {
             let chosen = choose_segmentation(&image, regions, &point, 30.0, None, None).unwrap();
             assert_eq!(chosen.fallback.regions.len(), chosen.segmentation.regions.len());
             let free = segment(&image, regions, &free_options(30.0)).unwrap();
-            let flat = common::psnr_of_mse(free.flat_error(&image) / pixels) >= PLAIN_FROM_PSNR;
+            let flat = flat_psnr(free.flat_error(&image), &image) >= PLAIN_FROM_PSNR;
             flat_art.push(flat);
             let tried = flat.then_some(PLAIN_COMPACTNESS).into_iter().flatten();
             let candidates: Vec<SegmentOptions> = [free_options(30.0), point.segment_options(30.0)]

@@ -325,8 +325,9 @@ impl Merging {
                 self.queued[a as usize] = None;
                 let shared = self.borders[a as usize].get(&b).copied();
                 let now = shared.and_then(|shared| self.allowed_cost(a, b, shared));
-                if self.parent[b as usize] != b || now != Some(cost) {
-                    // Its pair is gone or costs otherwise: queued again as `a` is now.
+                if now != Some(cost) {
+                    // Its partner merged away (no longer a neighbour) or the pair costs
+                    // otherwise: queued again as `a` is now.
                     let cheapest = self.cheapest(a);
                     self.enqueue(a, cheapest);
                 } else {

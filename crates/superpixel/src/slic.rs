@@ -334,11 +334,13 @@ fn ceil_from(v: f32) -> usize {
 /// MB each at 128 000 centres) cost more to zero and add up than the pass itself.
 fn update_centers(centers: &mut [Center], labels: &[u32], lab: &Lab, width: usize) {
     let mut sums = vec![[0.0f64; 6]; centers.len()];
-    for (i, &label) in labels.iter().enumerate() {
-        let (x, y) = (i % width, i / width);
-        let s = &mut sums[label as usize];
-        for (acc, v) in s.iter_mut().zip([lab.l[i], lab.a[i], lab.b[i], x as f32, y as f32, 1.0]) {
-            *acc += v as f64;
+    for (y, row) in labels.chunks(width).enumerate() {
+        for (x, &label) in row.iter().enumerate() {
+            let i = y * width + x;
+            let s = &mut sums[label as usize];
+            for (acc, v) in s.iter_mut().zip([lab.l[i], lab.a[i], lab.b[i], x as f32, y as f32, 1.0]) {
+                *acc += v as f64;
+            }
         }
     }
     for (center, s) in centers.iter_mut().zip(sums) {
