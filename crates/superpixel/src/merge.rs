@@ -1,7 +1,7 @@
 //! Fewer, better regions: SLIC at a finer scale, then the most alike neighbours merged.
 
 use std::cmp::Ordering;
-use std::collections::{BTreeMap, BinaryHeap};
+use std::collections::BinaryHeap;
 
 use image::Rgb32FImage;
 
@@ -198,7 +198,7 @@ struct Merging {
     /// merging's time: a region that grows is costed against all of its neighbours each time).
     mean: Vec<[f64; 3]>,
     perimeter: Vec<f64>,
-    borders: Vec<BTreeMap<u32, f64>>,
+    borders: Vec<Borders>,
     /// Each root's live entry in the queue (cost, partner); the queue's other entries are stale.
     queued: Vec<Option<(f64, u32)>>,
     queue: BinaryHeap<Candidate>,
@@ -213,7 +213,7 @@ impl Merging {
         let sum: Vec<[f64; 3]> =
             segmentation.regions.iter().map(|r| r.mean_color.map(|c| c as f64 * r.pixels as f64)).collect();
         let mean = sum.iter().zip(&size).map(|(s, &n): (&[f64; 3], &f64)| s.map(|c| c / n)).collect();
-        let mut borders = vec![BTreeMap::new(); count];
+        let mut borders = vec![Borders::default(); count];
         let mut perimeter = vec![0.0; count];
         let (width, height) = (segmentation.width as usize, segmentation.height as usize);
         for (index, &label) in segmentation.labels.iter().enumerate() {
@@ -223,12 +223,13 @@ impl Merging {
                     Some(other) if other == label => {}
                     Some(other) => {
                         perimeter[label as usize] += 1.0;
-                        *borders[label as usize].entry(other).or_insert(0.0) += 1.0;
+                        borders[label as usize].add_unsorted(other, 1.0);
                     }
                     None => perimeter[label as usize] += 1.0,
                 }
             }
         }
+        borders.iter_mut().for_each(Borders::sort);
         let mut merging = Self {
             parent: (0..count as u32).collect(),
             size,
@@ -290,7 +291,7 @@ impl Merging {
     /// Root `a`'s cheapest allowed merge with a touching root, by the queue's order.
     fn cheapest(&self, a: u32) -> Option<(f64, u32)> {
         let mut best = None;
-        for (&b, &shared) in &self.borders[a as usize] {
+        for &(b, shared) in &self.borders[a as usize].0 {
             if let Some(cost) = self.allowed_cost(a, b, shared)
                 && precedes((cost, a, b), best.map(|(c, p)| (c, a, p)))
             {
@@ -323,7 +324,7 @@ impl Merging {
                     continue;
                 }
                 self.queued[a as usize] = None;
-                let shared = self.borders[a as usize].get(&b).copied();
+                let shared = self.borders[a as usize].get(b);
                 let now = shared.and_then(|shared| self.allowed_cost(a, b, shared));
                 if now != Some(cost) {
                     // Its partner merged away (no longer a neighbour) or the pair costs
@@ -331,7 +332,7 @@ impl Merging {
                     let cheapest = self.cheapest(a);
                     self.enqueue(a, cheapest);
                 } else {
-                    let (na, nb) = (self.borders[a as usize].len(), self.borders[b as usize].len());
+                    let (na, nb) = (self.borders[a as usize].0.len(), self.borders[b as usize].0.len());
                     let (kept, merged) = if (nb, a) > (na, b) { (b, a) } else { (a, b) };
                     self.join(kept, merged);
                     return Some((kept, merged, cost));
@@ -349,7 +350,7 @@ impl Merging {
     /// changed; its neighbours' entries are checked when they come out).
     fn join(&mut self, a: u32, b: u32) {
         let (ia, ib) = (a as usize, b as usize);
-        let shared = self.borders[ia].get(&b).copied().unwrap_or(0.0);
+        let shared = self.borders[ia].get(b).unwrap_or(0.0);
         self.parent[ib] = a;
         self.size[ia] += self.size[ib];
         self.perimeter[ia] += self.perimeter[ib] - 2.0 * shared;
@@ -359,18 +360,78 @@ impl Merging {
         self.mean[ia] = self.sum[ia].map(|c| c / self.size[ia]);
         self.queued[ib] = None;
         let moved = std::mem::take(&mut self.borders[ib]);
-        for (other, length) in moved {
-            if other == a {
-                continue;
+        for &(other, length) in &moved.0 {
+            if other != a {
+                self.borders[other as usize].rename(b, a, length);
             }
-            let theirs = &mut self.borders[other as usize];
-            theirs.remove(&b);
-            *theirs.entry(a).or_insert(0.0) += length;
-            *self.borders[ia].entry(other).or_insert(0.0) += length;
         }
-        self.borders[ia].remove(&b);
+        let kept = std::mem::take(&mut self.borders[ia]);
+        self.borders[ia] = kept.union_without(&moved, [a, b]);
         let cheapest = self.cheapest(a);
         self.enqueue(a, cheapest);
+    }
+}
+
+/// A root's touching roots and the length of border (pixel edges) it shares with each, sorted
+/// by label: looked up by binary search and joined by one linear merge (a tree map spent most of
+/// merging's time on allocation and rebalancing, at 128k regions).
+#[derive(Clone, Debug, Default)]
+struct Borders(Vec<(u32, f64)>);
+
+impl Borders {
+    /// Adds `length` to the border with `other` while the list is being built (before
+    /// [`Borders::sort`]): a region touches a handful of others then, so a scan is cheapest.
+    fn add_unsorted(&mut self, other: u32, length: f64) {
+        match self.0.iter_mut().find(|(label, _)| *label == other) {
+            Some((_, shared)) => *shared += length,
+            None => self.0.push((other, length)),
+        }
+    }
+
+    fn sort(&mut self) {
+        self.0.sort_unstable_by_key(|&(label, _)| label);
+    }
+
+    fn position(&self, other: u32) -> Result<usize, usize> {
+        self.0.binary_search_by_key(&other, |&(label, _)| label)
+    }
+
+    /// The border shared with `other`, if they touch.
+    fn get(&self, other: u32) -> Option<f64> {
+        self.position(other).ok().map(|i| self.0[i].1)
+    }
+
+    /// The neighbour `from` became `to`: its border (`length`) is added to `to`'s.
+    fn rename(&mut self, from: u32, to: u32, length: f64) {
+        if let Ok(i) = self.position(from) {
+            self.0.remove(i);
+        }
+        match self.position(to) {
+            Ok(i) => self.0[i].1 += length,
+            Err(i) => self.0.insert(i, (to, length)),
+        }
+    }
+
+    /// Both lists in one, borders with the same neighbour added, without the labels `skip`.
+    fn union_without(self, other: &Self, skip: [u32; 2]) -> Self {
+        let (mut mine, mut theirs) = (self.0.into_iter().peekable(), other.0.iter().copied().peekable());
+        let mut union = Vec::with_capacity(mine.len() + theirs.len());
+        loop {
+            let next = match (mine.peek(), theirs.peek()) {
+                (Some(&(x, lx)), Some(&(y, ly))) if x == y => {
+                    (mine.next(), theirs.next());
+                    (x, lx + ly)
+                }
+                (Some(&(x, _)), Some(&(y, _))) if y < x => theirs.next().unwrap(),
+                (Some(_), _) => mine.next().unwrap(),
+                (None, Some(_)) => theirs.next().unwrap(),
+                (None, None) => break,
+            };
+            if !skip.contains(&next.0) {
+                union.push(next);
+            }
+        }
+        Self(union)
     }
 }
 
@@ -388,6 +449,8 @@ fn precedes(merge: (f64, u32, u32), other: Option<(f64, u32, u32)>) -> bool {
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeMap;
+
     use image::{Rgb, Rgb32FImage};
 
     use super::*;
@@ -454,6 +517,22 @@ mod tests {
             }
             merges.push((kept, merged, cost));
         }
+    }
+
+    #[test]
+    fn borders_join_sorted_and_summed() {
+        let mut kept = Borders::default();
+        [(7, 1.0), (2, 3.0), (9, 2.0), (2, 1.0)].into_iter().for_each(|(l, n)| kept.add_unsorted(l, n));
+        kept.sort();
+        assert_eq!(kept.0, [(2, 4.0), (7, 1.0), (9, 2.0)]);
+        let merged = Borders(vec![(1, 5.0), (2, 1.0), (4, 2.0), (9, 6.0)]);
+        let union = kept.union_without(&merged, [4, 7]);
+        assert_eq!(union.0, [(1, 5.0), (2, 5.0), (9, 8.0)]);
+        let mut theirs = Borders(vec![(3, 1.0), (5, 2.0), (8, 1.0)]);
+        theirs.rename(8, 1, 1.0);
+        theirs.rename(5, 3, 2.0);
+        assert_eq!(theirs.0, [(1, 1.0), (3, 3.0)]);
+        assert_eq!((theirs.get(3), theirs.get(5)), (Some(3.0), None));
     }
 
     #[test]
