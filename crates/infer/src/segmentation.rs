@@ -45,17 +45,17 @@ pub struct Segmented {
 }
 
 /// `image` split into `regions` superpixels: of the candidates — merged freely
-/// ([`FREE_OVERSEGMENT`]; `free` when the caller already cut it, as the automatic budget does),
-/// as `point` segments (SLIC at `compactness` for `oversegment` × the regions, merged by colour
-/// above its compactness floor), and on flat art ([`PLAIN_FROM_PSNR`]) plain SLIC at several
-/// compactnesses — the one whose regions, each filled with its mean colour, draw it best (least
+/// ([`FREE_OVERSEGMENT`]; `free` when the caller already cut it, as the automatic budget does)
+/// and, on flat art only ([`PLAIN_FROM_PSNR`]), as `point` segments (SLIC at `compactness` for
+/// `oversegment` × the regions, merged by colour above its compactness floor) and plain SLIC at
+/// several compactnesses — the one whose regions, each filled with its mean colour, draw it best (least
 /// squared error), with its fallback drawing (the only candidate traced and rendered).
 ///
 /// The second pays on flat art at a few hundred regions and fewer: on the 31 emoji of
 /// data/eval, by the flat-fill error at 15 to 127 regions, the free candidate alone is 1.1–3.8 dB
 /// worse than the best of all six, and with the second beside it 0.08–0.44 dB worse; on the
 /// photos the free one was the best at every count from 7 to 1999 on all 8 (one exception:
-/// 0.02 dB at 7).
+/// 0.02 dB at 7), so there it is not made (0.05–0.09 s of a photo at 500 paths).
 ///
 /// An image longer than [`CHOICE_SIDE`] has the candidates compared on a copy of that size
 /// (when the copy still has [`CHOICE_PIXELS_PER_REGION`] pixels a region), and only the winner
@@ -113,10 +113,9 @@ fn best_candidate(
     let mut best = (free.flat_error(image), free, None);
     let flat_art = flat_psnr(best.0, image) >= PLAIN_FROM_PSNR;
     let plain = OperatingPoint { oversegment: 1.0, ..*point };
-    let few = flat_art.then_some(PLAIN_COMPACTNESS).into_iter().flatten();
-    let others = std::iter::once(point.segment_options(compactness))
-        .chain(few.map(|fraction| plain.segment_options(compactness * fraction)));
-    for options in others {
+    let few = PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(compactness * fraction));
+    let others = flat_art.then(|| std::iter::once(point.segment_options(compactness)).chain(few));
+    for options in others.into_iter().flatten() {
         let candidate = segment(image, regions, &options)?;
         let error = candidate.flat_error(image);
         if error < best.0 {
@@ -127,13 +126,16 @@ fn best_candidate(
 }
 
 /// When the freely merged candidate's regions, each filled with its mean colour, draw the
-/// image at this PSNR (dB) or better, [`choose_segmentation`] also tries plain SLIC at each of
-/// [`PLAIN_COMPACTNESS`] × the compactness. That is flat art (the automatic budget's "close
+/// image at this PSNR (dB) or better, [`choose_segmentation`] also tries the operating point's
+/// merged regions and plain SLIC at each of [`PLAIN_COMPACTNESS`] × the compactness. That is
+/// flat art (the automatic budget's "close
 /// enough"), where plain SLIC's regions sometimes win: on the 31 emoji of data/eval, by the
 /// flat-fill error, on 3–11 of them at 7 to 255 regions, and trying them at every budget keeps
 /// `--paths auto` at 35.34 dB where never trying them gives 35.11. On the photos (about 25 dB
 /// at 500 paths, 28.5 at 2000) they never won at any count, and the four SLICs were 0.23 s of
-/// a photo's 0.48 s of segmenting at 500 paths.
+/// a photo's 0.48 s of segmenting at 500 paths. The operating point's regions lost there by
+/// 1.3–2.9 dB of flat-fill PSNR at 500 paths; gating them too leaves every SVG of data/eval's
+/// photos and emoji at 500 and `auto` (and photos at 2000) as it was.
 const PLAIN_FROM_PSNR: f64 = 30.0;
 
 /// The SLIC compactness of [`choose_segmentation`]'s plain-SLIC candidates ([`PLAIN_FROM_PSNR`]), as
@@ -320,11 +322,10 @@ mod tests {
             let free = segment(&image, regions, &free_options(30.0)).unwrap();
             let flat = flat_psnr(free.flat_error(&image), &image) >= PLAIN_FROM_PSNR;
             flat_art.push(flat);
-            let tried = flat.then_some(PLAIN_COMPACTNESS).into_iter().flatten();
-            let candidates: Vec<SegmentOptions> = [free_options(30.0), point.segment_options(30.0)]
-                .into_iter()
-                .chain(tried.map(|fraction| plain.segment_options(30.0 * fraction)))
-                .collect();
+            let plains = PLAIN_COMPACTNESS.map(|fraction| plain.segment_options(30.0 * fraction));
+            let tried = flat.then(|| std::iter::once(point.segment_options(30.0)).chain(plains));
+            let candidates: Vec<SegmentOptions> =
+                std::iter::once(free_options(30.0)).chain(tried.into_iter().flatten()).collect();
             let segmentations: Vec<Segmentation> =
                 candidates.iter().map(|options| segment(&image, regions, options).unwrap()).collect();
             // The rule: the least flat-fill error.
