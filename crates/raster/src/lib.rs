@@ -26,4 +26,4 @@ pub use shapes::{random_blob, random_scene};
 pub use soft::{
     SoftRasterOptions, coverage_soft, paint_soft, paint_soft_with_union, render_soft, render_soft_with_union,
 };
-pub use svg::{MAX_DECIMALS, SvgError, SvgOptions, to_svg, to_svg_with};
+pub use svg::{Decimals, MAX_DECIMALS, SvgError, SvgOptions, to_svg, to_svg_with};

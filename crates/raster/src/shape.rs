@@ -2,7 +2,6 @@
 //! [`Outline`] (contours of any number of lines and cubics: superpixels drawn along the
 //! boundaries they share, which one path can only approximate).
 
-use std::fmt::Write;
 use std::sync::Arc;
 
 use common::{Bounds, PixelBox, signed_area};
@@ -10,6 +9,7 @@ use tiny_skia::PathBuilder;
 
 use crate::geometry::cubic_point;
 use crate::path::{Path, SEGMENTS};
+use crate::svg::Decimals;
 
 /// A closed outline filled with one colour, in the unit square of a canvas.
 pub trait Filled {
@@ -24,9 +24,9 @@ pub trait Filled {
     /// The outline as tiny-skia geometry in unit-square coordinates, whatever the opacity;
     /// `None` when it is not finite or encloses nothing.
     fn geometry(&self) -> Option<tiny_skia::Path>;
-    /// SVG path data (`M…Z`) of the outline scaled by `scale` = (width, height), each number
-    /// written by `number`.
-    fn svg_data(&self, scale: [f32; 2], number: &dyn Fn(f32) -> String) -> String;
+    /// Writes SVG path data (`M…Z`) of the outline scaled by `scale` = (width, height) to
+    /// `out`, numbers rounded to `decimals`.
+    fn svg_data(&self, scale: [f32; 2], decimals: Decimals, out: &mut String);
 
     /// The pixels the outline can change on a `width × height` canvas ([`Bounds::pixels`]);
     /// `None` when there are none or a coordinate is not finite.
@@ -56,8 +56,8 @@ impl<T: Filled + ?Sized> Filled for &T {
         (**self).geometry()
     }
 
-    fn svg_data(&self, scale: [f32; 2], number: &dyn Fn(f32) -> String) -> String {
-        (**self).svg_data(scale, number)
+    fn svg_data(&self, scale: [f32; 2], decimals: Decimals, out: &mut String) {
+        (**self).svg_data(scale, decimals, out)
     }
 }
 
@@ -93,15 +93,21 @@ impl Filled for Path {
         builder.finish()
     }
 
-    fn svg_data(&self, [sx, sy]: [f32; 2], number: &dyn Fn(f32) -> String) -> String {
-        let point = |[x, y]: [f32; 2]| format!("{} {}", number(x * sx), number(y * sy));
-        let mut d = format!("M{}", point(self.points[0]));
+    fn svg_data(&self, [sx, sy]: [f32; 2], decimals: Decimals, out: &mut String) {
+        let mut point = |[x, y]: [f32; 2], before: char| {
+            out.push(before);
+            decimals.write(out, decimals.ticks(x * sx), false);
+            out.push(' ');
+            decimals.write(out, decimals.ticks(y * sy), false);
+        };
+        point(self.points[0], 'M');
         for j in 0..SEGMENTS {
             let [_, c1, c2, end] = self.segment(j);
-            let _ = write!(d, "C{} {} {}", point(c1), point(c2), point(end));
+            point(c1, 'C');
+            point(c2, ' ');
+            point(end, ' ');
         }
-        d.push('Z');
-        d
+        out.push('Z');
     }
 }
 
@@ -187,6 +193,8 @@ impl Contour {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Outline {
     contours: Vec<Contour>,
+    /// The hull of every point, found once: scenes ask for it at every repaint.
+    bounds: Option<Bounds>,
     /// Fill colour, RGB in [0, 1].
     pub color: [f32; 3],
     /// Opacity in [0, 1]; 0 means invisible.
@@ -198,7 +206,10 @@ impl Outline {
     /// encloses nothing).
     pub fn new(contours: Vec<Contour>, color: [f32; 3], alpha: f32) -> Option<Self> {
         let contours: Vec<Contour> = contours.into_iter().filter(|c| !c.segments.is_empty()).collect();
-        contours.iter().any(|c| c.segments.len() >= 2).then_some(Self { contours, color, alpha })
+        // A cubic lies within its control points' hull.
+        let points: Vec<[f32; 2]> = contours.iter().flat_map(Contour::points).collect();
+        let bounds = Bounds::of_points(&points);
+        contours.iter().any(|c| c.segments.len() >= 2).then_some(Self { contours, bounds, color, alpha })
     }
 
     /// The polygon through `corners` (closed back to the first); `None` with fewer than three.
@@ -241,9 +252,7 @@ impl Filled for Outline {
     }
 
     fn bounds(&self) -> Option<Bounds> {
-        // A cubic lies within its control points' hull.
-        let points: Vec<[f32; 2]> = self.contours.iter().flat_map(Contour::points).collect();
-        Bounds::of_points(&points)
+        self.bounds
     }
 
     fn geometry(&self) -> Option<tiny_skia::Path> {
@@ -267,61 +276,69 @@ impl Filled for Outline {
     /// Each contour starts with an absolute `M`; its pieces are relative (`h`, `v`, `l`, `c`)
     /// to the rounded point before them, so they add up to the rounded points exactly; the last
     /// piece, which ends at the start, is `z` alone when it is straight.
-    fn svg_data(&self, [sx, sy]: [f32; 2], number: &dyn Fn(f32) -> String) -> String {
-        let rounded = |[x, y]: [f32; 2]| -> [f32; 2] {
-            [number(x * sx).parse().unwrap_or(x * sx), number(y * sy).parse().unwrap_or(y * sy)]
-        };
-        let mut d = String::new();
+    fn svg_data(&self, [sx, sy]: [f32; 2], decimals: Decimals, out: &mut String) {
+        let ticks = |[x, y]: [f32; 2]| [decimals.ticks(x * sx), decimals.ticks(y * sy)];
         for contour in &self.contours {
-            let mut at = rounded(contour.start);
-            let _ = write!(d, "M{}", numbers(&[at[0], at[1]], number));
+            let mut at = ticks(contour.start);
+            out.push('M');
+            Numbers::new(out, decimals).write(&at);
             let last = contour.segments.len() - 1;
             for (index, segment) in contour.segments.iter().enumerate() {
                 let delta = |p: [f32; 2]| {
-                    let p = rounded(p);
+                    let p = ticks(p);
                     [p[0] - at[0], p[1] - at[1]]
                 };
                 let end = delta(segment.end());
-                let _ = match *segment {
-                    Segment::Line(_) if index == last => Ok(()),
-                    Segment::Line(_) if end[1] == 0.0 => write!(d, "h{}", numbers(&end[..1], number)),
-                    Segment::Line(_) if end[0] == 0.0 => write!(d, "v{}", numbers(&end[1..], number)),
-                    Segment::Line(_) => write!(d, "l{}", numbers(&end, number)),
+                let (command, values) = match *segment {
+                    Segment::Line(_) if index == last => (None, &[][..]),
+                    Segment::Line(_) if end[1] == 0 => (Some('h'), &end[..1]),
+                    Segment::Line(_) if end[0] == 0 => (Some('v'), &end[1..]),
+                    Segment::Line(_) => (Some('l'), &end[..]),
                     Segment::Cubic(c1, c2, _) => {
                         let (c1, c2) = (delta(c1), delta(c2));
-                        write!(d, "c{}", numbers(&[c1[0], c1[1], c2[0], c2[1], end[0], end[1]], number))
+                        out.push('c');
+                        Numbers::new(out, decimals).write(&[c1[0], c1[1], c2[0], c2[1], end[0], end[1]]);
+                        (None, &[][..])
                     }
                 };
-                at = rounded(segment.end());
+                if let Some(command) = command {
+                    out.push(command);
+                    Numbers::new(out, decimals).write(values);
+                }
+                at = ticks(segment.end());
             }
-            d.push('z');
+            out.push('z');
         }
-        d
     }
 }
 
-/// Numbers as SVG path data writes them shortest: `0.5` as `.5`, and no space before a minus
-/// sign or before a point that cannot continue the number before it.
-fn numbers(values: &[f32], number: &dyn Fn(f32) -> String) -> String {
-    let mut text = String::new();
-    let mut previous_has_point = false;
-    for (i, &value) in values.iter().enumerate() {
-        let written = number(value);
-        let written = match written.strip_prefix("0.") {
-            Some(rest) => format!(".{rest}"),
-            None => match written.strip_prefix("-0.") {
-                Some(rest) => format!("-.{rest}"),
-                None => written,
-            },
-        };
-        let joins = written.starts_with('-') || (written.starts_with('.') && previous_has_point);
-        if i > 0 && !joins {
-            text.push(' ');
-        }
-        previous_has_point = written.contains('.');
-        text.push_str(&written);
+/// Numbers after a path command, written as SVG path data allows them shortest: `0.5` as `.5`,
+/// and no space before a minus sign or before a point that cannot continue the number before it.
+struct Numbers<'a> {
+    out: &'a mut String,
+    decimals: Decimals,
+}
+
+impl<'a> Numbers<'a> {
+    fn new(out: &'a mut String, decimals: Decimals) -> Self {
+        Self { out, decimals }
     }
-    text
+
+    /// Writes `values` (ticks of [`Decimals`]) one after the other.
+    fn write(self, values: &[i64]) {
+        let unit = self.decimals.ticks(1.0);
+        let mut previous_has_point = false;
+        for (i, &value) in values.iter().enumerate() {
+            let has_point = value % unit != 0;
+            let starts_with_point = has_point && value.abs() < unit;
+            let joins = value < 0 || (starts_with_point && previous_has_point);
+            if i > 0 && !joins {
+                self.out.push(' ');
+            }
+            previous_has_point = has_point;
+            self.decimals.write(self.out, value, true);
+        }
+    }
 }
 
 /// A shape of a drawing: a path or an outline (shared, so that copying a drawing is cheap).
@@ -375,8 +392,8 @@ impl Filled for Shape {
         self.filled().geometry()
     }
 
-    fn svg_data(&self, scale: [f32; 2], number: &dyn Fn(f32) -> String) -> String {
-        self.filled().svg_data(scale, number)
+    fn svg_data(&self, scale: [f32; 2], decimals: Decimals, out: &mut String) {
+        self.filled().svg_data(scale, decimals, out)
     }
 }
 
@@ -384,16 +401,22 @@ impl Filled for Shape {
 mod tests {
     use super::*;
 
+    /// The path data of `shape` at `scale`, with `decimals` decimals.
+    fn data(shape: &impl Filled, scale: [f32; 2], decimals: usize) -> String {
+        let mut out = String::new();
+        shape.svg_data(scale, Decimals::new(decimals), &mut out);
+        out
+    }
+
     #[test]
     fn a_polygon_needs_three_corners_and_writes_relative_edges_short() {
         assert!(Outline::polygon(&[[0.0, 0.0], [1.0, 0.0]], [0.0; 3], 1.0).is_none());
         let l =
             Outline::polygon(&[[0.0, 0.0], [0.5, 0.0], [0.5, 0.5], [0.25, 1.0], [0.0, 1.0]], [0.0; 3], 1.0)
                 .unwrap();
-        let number = |v: f32| format!("{v}");
-        assert_eq!(l.svg_data([4.0, 2.0], &number), "M0 0h2v1l-1 1h-1z");
+        assert_eq!(data(&l, [4.0, 2.0], 6), "M0 0h2v1l-1 1h-1z");
         let half = Outline::polygon(&[[0.0, 0.0], [0.125, 0.0], [0.125, 0.25]], [0.0; 3], 1.0).unwrap();
-        assert_eq!(half.svg_data([4.0, 2.0], &number), "M0 0h.5v.5z");
+        assert_eq!(data(&half, [4.0, 2.0], 6), "M0 0h.5v.5z");
         assert_eq!(l.pixel_box(4, 2), PixelBox::new(0, 0, 3, 2)); // x up to 2 px, widened by one
         let broken = Outline::polygon(&[[0.0, 0.0], [f32::NAN, 0.0], [0.0, 1.0]], [0.0; 3], 1.0).unwrap();
         assert!(broken.geometry().is_none() && broken.pixel_box(4, 2).is_none());
@@ -422,11 +445,7 @@ mod tests {
             ],
         };
         let outline = Outline::new(vec![cubic.clone(), hole], [0.5; 3], 1.0).unwrap();
-        let number = |v: f32| {
-            let text = format!("{v:.2}");
-            text.trim_end_matches('0').trim_end_matches('.').to_string()
-        };
-        let d = outline.svg_data([100.0, 100.0], &number);
+        let d = data(&outline, [100.0, 100.0], 2);
         assert!(d.starts_with("M12.34 10c"), "{d}");
         assert_eq!(d.matches('M').count(), 2);
         let svg = format!(
@@ -447,7 +466,9 @@ mod tests {
         let area = signed_area(&cubic.flatten(32)) - 0.04;
         let covered = ours.pixels().filter(|p| p.0[0] < 200).count() as f32 / 10_000.0;
         assert!((covered - area).abs() < 0.01, "{covered} vs {area}");
-        assert_eq!(numbers(&[0.5, -0.25, 3.0, 0.75, -1.5], &number), ".5-.25 3 .75-1.5");
+        let mut numbers = String::new();
+        Numbers::new(&mut numbers, Decimals::new(2)).write(&[50, -25, 300, 75, -150, 0, 20]);
+        assert_eq!(numbers, ".5-.25 3 .75-1.5 0 .2");
     }
 
     #[test]
