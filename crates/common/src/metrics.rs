@@ -65,38 +65,50 @@ const SSIM_BAND: usize = 64;
 
 /// The sum of SSIM over the output rows `rows` of one channel: the five Gaussian-weighted
 /// moments (means, second moments, cross moment) of every window whose top row is in `rows`.
+/// Each pass runs along contiguous rows of one moment at a time, so it compiles to vector code;
+/// every window's sums are added in the same order as one window at a time would add them.
 fn ssim_band(a: &Rgb32FImage, b: &Rgb32FImage, channel: usize, rows: Range<usize>, weights: &[f64]) -> f64 {
     let (c1, c2) = (0.01f64.powi(2), 0.03f64.powi(2));
     let width = a.width() as usize;
     let span = weights.len();
     let inner_width = width + 1 - span;
     let (x, y) = (a.as_raw(), b.as_raw());
-    let value = |data: &[f32], row: usize, column: usize| data[3 * (row * width + column) + channel] as f64;
-    // Horizontal pass over every image row the band's windows reach: [μx, μy, xx, yy, xy].
+    // Horizontal pass over every image row the band's windows reach, one plane per moment:
+    // [μx, μy, xx, yy, xy].
     let input_rows = rows.start..rows.end + span - 1;
-    let mut horizontal = vec![[0.0f64; 5]; input_rows.len() * inner_width];
+    let mut horizontal: [Vec<f64>; 5] = std::array::from_fn(|_| vec![0.0; input_rows.len() * inner_width]);
+    let mut values: [Vec<f64>; 5] = std::array::from_fn(|_| vec![0.0; width]);
     for (r, row) in input_rows.enumerate() {
-        for column in 0..inner_width {
-            let mut moments = [0.0f64; 5];
+        for column in 0..width {
+            let index = 3 * (row * width + column) + channel;
+            let (p, q) = (x[index] as f64, y[index] as f64);
+            for (plane, v) in values.iter_mut().zip([p, q, p * p, q * q, p * q]) {
+                plane[column] = v;
+            }
+        }
+        for (plane, out) in values.iter().zip(&mut horizontal) {
+            let out = &mut out[r * inner_width..(r + 1) * inner_width];
             for (k, w) in weights.iter().enumerate() {
-                let (p, q) = (value(x, row, column + k), value(y, row, column + k));
-                for (m, v) in moments.iter_mut().zip([p, q, p * p, q * q, p * q]) {
-                    *m += w * v;
+                for (o, v) in out.iter_mut().zip(&plane[k..k + inner_width]) {
+                    *o += w * v;
                 }
             }
-            horizontal[r * inner_width + column] = moments;
         }
     }
     let mut sum = 0.0;
+    let mut m: [Vec<f64>; 5] = std::array::from_fn(|_| vec![0.0; inner_width]);
     for r in 0..rows.len() {
-        for column in 0..inner_width {
-            let mut m = [0.0f64; 5];
+        for (out, plane) in m.iter_mut().zip(&horizontal) {
+            out.fill(0.0);
             for (k, w) in weights.iter().enumerate() {
-                for (out, v) in m.iter_mut().zip(horizontal[(r + k) * inner_width + column]) {
-                    *out += w * v;
+                let row = &plane[(r + k) * inner_width..(r + k + 1) * inner_width];
+                for (o, v) in out.iter_mut().zip(row) {
+                    *o += w * v;
                 }
             }
-            let [mx, my, xx, yy, xy] = m;
+        }
+        for column in 0..inner_width {
+            let [mx, my, xx, yy, xy] = [0, 1, 2, 3, 4].map(|i| m[i][column]);
             let (vx, vy, cov) = (xx - mx * mx, yy - my * my, xy - mx * my);
             sum += ((2.0 * mx * my + c1) * (2.0 * cov + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
         }
