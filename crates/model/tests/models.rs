@@ -199,10 +199,13 @@ fn damaged_or_diverged_weights_are_refused_by_name() {
     let mut model = CoarseModel::new(&config, &device);
     model = model.map(&mut NanEverything);
     let diverged = dir.join("diverged.ckpt");
-    Checkpoint::of_model(Stage::Coarse, &config, &model, DType::F16).save(&diverged).unwrap();
-    let err = load_coarse(&diverged, &device).err().expect("NaN weights are refused");
-    assert!(matches!(err, CheckpointError::Format { problem: FormatProblem::NonFinite(_), .. }), "{err}");
-    assert!(err.to_string().contains("diverged.ckpt"), "{err}");
+    for dtype in [DType::F16, DType::BF16, DType::F32] {
+        Checkpoint::of_model(Stage::Coarse, &config, &model, dtype).save(&diverged).unwrap();
+        let err = load_coarse(&diverged, &device).err().expect("NaN weights are refused");
+        let refused = matches!(err, CheckpointError::Format { problem: FormatProblem::NonFinite(_), .. });
+        assert!(refused, "{dtype:?}: {err}");
+        assert!(err.to_string().contains("diverged.ckpt"), "{err}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
