@@ -4,7 +4,6 @@ use burn::module::{Module, Param};
 use burn::nn::attention::{MhaInput, MultiHeadAttention, MultiHeadAttentionConfig};
 use burn::nn::transformer::{
     PositionWiseFeedForward, PositionWiseFeedForwardConfig, TransformerEncoder, TransformerEncoderConfig,
-    TransformerEncoderInput,
 };
 use burn::nn::{Initializer, LayerNorm, LayerNormConfig, Linear, LinearConfig};
 use burn::tensor::{Device, Int, Tensor, TensorData};
@@ -77,8 +76,8 @@ impl PathDecoder {
             .forward(MhaInput::new(self.query_norm.forward(queries.clone()), memory.clone(), memory))
             .context;
         let x = queries + attended;
-        let x = x.clone() + self.mlp.forward(self.mlp_norm.forward(x));
-        let x = self.self_attention.forward(TransformerEncoderInput::new(x));
+        let x = x.clone() + crate::block::mlp(&self.mlp, self.mlp_norm.forward(x));
+        let x = crate::block::encode(&self.self_attention, x);
         self.norm.forward(x)
     }
 }

@@ -6,6 +6,7 @@
 //! their [`Checkpoint`] files, and the input contract both are fed through ([`InputSpec`],
 //! [`CropBatch`]). Both return a [`raster::PathBatch`] in the crop's unit square.
 
+mod block;
 mod checkpoint;
 mod coarse;
 mod config;

@@ -2,7 +2,7 @@
 
 use burn::module::{Module, Param};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
-use burn::nn::transformer::{TransformerEncoder, TransformerEncoderConfig, TransformerEncoderInput};
+use burn::nn::transformer::{TransformerEncoder, TransformerEncoderConfig};
 use burn::nn::{Initializer, LayerNorm, LayerNormConfig};
 use burn::tensor::{Device, Tensor};
 
@@ -47,7 +47,7 @@ impl VitEncoder {
         let tokens = patches.reshape([batch, dim, rows * columns]).swap_dims(1, 2);
         let class = self.class_token.val().expand([batch, 1, dim]);
         let x = Tensor::cat(vec![class, tokens], 1) + self.position_embedding.val();
-        let x = self.norm.forward(self.blocks.forward(TransformerEncoderInput::new(x)));
+        let x = self.norm.forward(crate::block::encode(&self.blocks, x));
         x.narrow(1, 1, rows * columns)
     }
 }
