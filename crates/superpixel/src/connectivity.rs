@@ -53,15 +53,21 @@ pub(crate) fn enforce_connectivity(
 
 /// Renumbers labels to `0..k` in order of first appearance; returns them and k.
 pub(crate) fn relabel(labels: &[u32]) -> (Vec<u32>, usize) {
-    let mut map = std::collections::HashMap::new();
+    const UNSEEN: u32 = u32::MAX;
+    let largest = labels.iter().copied().max().map_or(0, |l| l as usize + 1);
+    let mut map = vec![UNSEEN; largest];
+    let mut count = 0u32;
     let out = labels
         .iter()
         .map(|&label| {
-            let next = map.len() as u32;
-            *map.entry(label).or_insert(next)
+            let new = &mut map[label as usize];
+            if *new == UNSEEN {
+                (*new, count) = (count, count + 1);
+            }
+            *new
         })
         .collect();
-    (out, map.len())
+    (out, count as usize)
 }
 
 /// The 4-connected neighbours (left, right, up, down) of pixel `index` of a row-major

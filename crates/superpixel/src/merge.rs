@@ -105,7 +105,8 @@ impl Hierarchy {
             }
             label
         };
-        let labels: Vec<u32> = self.base.labels.iter().map(|&l| root(l)).collect();
+        let roots: Vec<u32> = (0..self.most_regions() as u32).map(root).collect();
+        let labels: Vec<u32> = self.base.labels.iter().map(|&l| roots[l as usize]).collect();
         let (labels, count) = relabel(&labels);
         Segmentation::from_labels(image, labels, count)
     }

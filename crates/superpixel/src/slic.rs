@@ -296,18 +296,19 @@ fn assign(
                 for y in y0..y1 {
                     let dy = y as f32 + 0.5 - center.y;
                     let row_cost = dy * dy * spatial_weight;
-                    let (pixel_row, local_row) = (y * width, (y - top) * width);
-                    for x in x0..x1 {
-                        let i = pixel_row + x;
-                        let (dl, da, db) =
-                            (lab.l[i] - center.lab[0], lab.a[i] - center.lab[1], lab.b[i] - center.lab[2]);
-                        let dx = x as f32 + 0.5 - center.x;
+                    let (pixels, local) =
+                        (y * width + x0..y * width + x1, (y - top) * width + x0..(y - top) * width + x1);
+                    let colours =
+                        lab.l[pixels.clone()].iter().zip(&lab.a[pixels.clone()]).zip(&lab.b[pixels]);
+                    let slots = best[local.clone()].iter_mut().zip(&mut chunk[local]);
+                    // Branch-free, so that the row compiles to vector compares and blends.
+                    for (column, (((&l, &a), &b), (best, label))) in colours.zip(slots).enumerate() {
+                        let (dl, da, db) = (l - center.lab[0], a - center.lab[1], b - center.lab[2]);
+                        let dx = (x0 + column) as f32 + 0.5 - center.x;
                         let cost = dl * dl + da * da + db * db + dx * dx * spatial_weight + row_cost;
-                        let slot = local_row + x;
-                        if cost < best[slot] {
-                            best[slot] = cost;
-                            chunk[slot] = index;
-                        }
+                        let closer = cost < *best;
+                        *best = if closer { cost } else { *best };
+                        *label = if closer { index } else { *label };
                     }
                 }
             }
