@@ -2,7 +2,7 @@
 //! it beside vtracer sees, stage by stage.
 //!
 //! `cargo run --release -p infer --example bench -- DIR [--paths 500,2000,auto] [--size 512]
-//!  [--no-refine] [--tolerance 0.5]`
+//!  [--no-refine | --regions-only] [--tolerance 0.5]`
 //!
 //! Each image is read and drawn once per budget with the bundled models on the CPU (flex), as
 //! `infer IMAGE --paths N` draws it. Prints a line per budget, then, last, one JSON line:
@@ -35,6 +35,10 @@ struct Args {
     /// Without E_r (the coarse stage and the fallback only).
     #[arg(long)]
     no_refine: bool,
+    /// The fallback alone: every budget N spent on N − 1 regions, without E_c or E_r (`infer
+    /// --paths N --regions N-1 --no-refine`), the bar the networks must clear.
+    #[arg(long, conflicts_with = "no_refine")]
+    regions_only: bool,
     /// Regions as shared boundaries fitted with curves within this many pixels (`infer
     /// --tolerance`); by default traced polygons.
     #[arg(long)]
@@ -56,7 +60,7 @@ fn mean(values: impl Iterator<Item = f64>) -> f64 {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let device = Device::flex();
-    let models = Models::bundled(!args.no_refine, &device)?;
+    let models = Models::bundled(!(args.no_refine || args.regions_only), &device)?;
     let images: Vec<PathBuf> =
         files_in(&args.dir)?.into_iter().filter(|path| load(path, args.size).is_ok()).collect();
     if images.is_empty() {
@@ -64,7 +68,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mut budgets = Vec::new();
     for &paths in &args.paths {
-        let job = Job { paths, tolerance: args.tolerance, ..Job::default() };
+        let regions = match paths {
+            PathBudget::Count(count) if args.regions_only => Some(count - 1),
+            PathBudget::Auto(_) if args.regions_only => {
+                return Err("--regions-only needs numbers of paths, not auto".into());
+            }
+            _ => None,
+        };
+        let job = Job { paths, regions, tolerance: args.tolerance, ..Job::default() };
         let mut runs: Vec<(f64, Report)> = Vec::new();
         for path in &images {
             let started = Instant::now();
