@@ -6,15 +6,15 @@
 use burn::tensor::Device;
 use image::Rgb32FImage;
 use model::{CoarseModel, CropBatch, ModelConfig, crop_to_image};
-use raster::Path;
+use raster::{Path, Shape};
 use superpixel::{Hierarchy, RegionCrop, Segmentation, worst_first};
 
 use crate::fallback::FallbackDrawing;
 use crate::scene::{Origin, Placed, Scene, Scope, region_errors};
 
 /// How many paths the coarse stage may draw.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CoarseBudget {
+#[derive(Clone, Copy, Debug)]
+pub struct CoarseBudget<'a> {
     /// The most E_c paths kept (0: E_c is not run).
     pub paths: usize,
     /// The most paths the scene may hold when the stage ends (background and fallbacks
@@ -22,15 +22,18 @@ pub struct CoarseBudget {
     pub total: usize,
     /// `None`: E_c draws only with what the regions leave of `total`. `Some`: E_c's paths are
     /// bought with regions ([`Trade`]).
-    pub trade: Option<Trade>,
+    pub trade: Option<Trade<'a>>,
 }
 
 /// E_c's paths paid for with regions: the segmentation fills the budget, and each E_c path kept
 /// takes the place of a region, merged away where merging costs least. A path is worth its
 /// region only if it takes away more error than the merge adds, so E_c draws only where it
 /// beats spending the same paths on regions.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Trade {
+#[derive(Clone, Copy, Debug)]
+pub struct Trade<'a> {
+    /// The image's merge tree, of which the scene's segmentation is a cut: what merging
+    /// regions away costs, and the regions left.
+    pub hierarchy: &'a Hierarchy,
     /// The tolerance the fallback drawing of the merged regions is drawn with (as
     /// [`FallbackDrawing::new`] takes it).
     pub tolerance: Option<f32>,
@@ -53,9 +56,9 @@ pub struct Trade {
 /// With a [`Trade`], the segmentation is meant to fill `total` on its own: the k paths kept
 /// are the k that took away the most error, for the k (up to `budget.paths`) at which their
 /// gain less the cost of merging k regions away ([`Hierarchy::flat_error`] of the
-/// segmentation's merge order) is largest. E_c first draws only the worst quarter of its
-/// regions ([`FIRST_ROUND`]) and goes on to the rest only where it buys paths for at least
-/// half of those. The scene is then drawn again on that cut with those paths, and kept only if
+/// image's merge tree) is largest. E_c draws its regions in rounds, worst first: the first
+/// [`FIRST_ROUND`], then each round as many again as all before it, while it buys paths for at
+/// least half of the regions it has drawn. The scene is then drawn again on that cut with those paths, and kept only if
 /// it beats the fallback drawing of the full segmentation.
 ///
 /// # Panics
@@ -81,70 +84,80 @@ pub fn draw_coarse(
         return;
     }
     let chosen = worst_regions(scene, &fallback, wanted);
-    let mut proposals = vec![Vec::new(); fallback.order.len()];
-    let propose_for = |regions: &[u32], proposals: &mut Vec<Vec<Path>>| {
+    let regions = segmentation.regions.len();
+    let propose_for = |asked: &[u32]| {
         let crops: Vec<RegionCrop> =
-            regions.iter().map(|&r| config.region_crop(&segmentation, &target, r)).collect();
-        for (&region, paths) in
-            regions.iter().zip(propose(coarse, &crops, target.dimensions(), batch, device))
+            asked.iter().map(|&r| config.region_crop(&segmentation, &target, r)).collect();
+        let mut proposals = vec![Vec::new(); regions];
+        for (&region, paths) in asked.iter().zip(propose(coarse, &crops, target.dimensions(), batch, device))
         {
             proposals[region as usize] = paths;
         }
+        proposals
     };
-    let Some(Trade { tolerance }) = budget.trade else {
-        propose_for(&chosen, &mut proposals);
-        let mut kept = paint_with(scene, &fallback, proposals);
+    let error = fallback.error;
+    let order = fallback.order.clone();
+    let alone = fallback_only(&target, &segmentation, fallback);
+    *scene = alone.clone();
+    let Some(Trade { hierarchy, tolerance }) = budget.trade else {
+        let mut kept = paint_with(scene, &order, propose_for(&chosen));
         kept.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         keep_best(scene, &kept, spare);
-        if scene.counts().coarse == 0 || scene.total_error() > fallback.error {
-            *scene = fallback_only(&target, &segmentation, fallback);
-        }
+        settle(scene, alone, error);
         return;
     };
-    let hierarchy = Hierarchy::new(&target, segmentation.clone());
-    let regions = segmentation.regions.len();
     let price = |k: usize| hierarchy.flat_error(regions - k) - hierarchy.flat_error(regions);
     // E_c draws the worst regions first: where it buys paths for fewer than half of them, the
     // regions it gets less wrong would buy fewer still, and it stops there.
-    let first = chosen.len().div_ceil(FIRST_ROUND);
-    let mut asked = 0;
-    let (kept, bought) = loop {
-        let upto = if asked == 0 { first } else { chosen.len() };
-        propose_for(&chosen[asked..upto], &mut proposals);
+    let (mut asked, mut kept) = (0, Vec::new());
+    let bought = loop {
+        let upto = if asked == 0 { FIRST_ROUND } else { 2 * asked }.min(chosen.len());
+        kept.extend(paint_with(scene, &order, propose_for(&chosen[asked..upto])));
         asked = upto;
-        *scene = Scene::new(target.clone(), segmentation.clone());
-        let mut kept = paint_with(scene, &fallback, proposals.clone());
         kept.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         let gains: Vec<f64> = kept.iter().take(wanted).map(|tried| tried.gain).collect();
         let bought = worth_their_regions(&gains, price);
         if asked == chosen.len() || 2 * bought < asked {
-            break (kept, bought);
+            break bought;
         }
     };
     if bought == 0 {
-        *scene = fallback_only(&target, &segmentation, fallback);
+        *scene = alone;
         return;
     }
     let cut = hierarchy.cut(&target, regions - bought);
     let fine_to_cut = region_map(&segmentation, &cut);
-    let mut bought: Vec<&Tried> = kept[..bought].iter().collect();
-    bought.sort_by_key(|tried| tried.index);
+    let mut bought: Vec<(usize, &Tried)> =
+        kept[..bought].iter().map(|tried| (tried.position(scene), tried)).collect();
+    bought.sort_by_key(|(position, _)| *position);
     let mut proposals = vec![Vec::new(); cut.regions.len()];
-    for tried in bought {
+    for (_, tried) in bought {
         proposals[fine_to_cut[tried.region as usize] as usize].push(tried.path);
     }
-    let merged_fallback = FallbackDrawing::new(&target, &cut, tolerance);
-    *scene = Scene::new(target.clone(), cut);
-    paint_with(scene, &merged_fallback, proposals);
-    if scene.counts().coarse == 0 || scene.total_error() > fallback.error {
-        *scene = fallback_only(&target, &segmentation, fallback);
+    let merged = FallbackDrawing::new(&target, &cut, tolerance);
+    let order = merged.order.clone();
+    *scene = fallback_only(&target, &cut, merged);
+    paint_with(scene, &order, proposals);
+    settle(scene, alone, error);
+}
+
+/// `scene` with E_c's paths, painted again in one pass (its boxes were painted in windows), or
+/// `alone`, the fallback drawing whose error is `error`, if the paths kept made the whole image
+/// worse (a path can reach a later region where its fallback leaves a seam) or none was kept.
+fn settle(scene: &mut Scene, alone: Scene, error: f64) {
+    if scene.counts().coarse > 0 {
+        scene.repaint();
+    }
+    if scene.counts().coarse == 0 || scene.total_error() > error {
+        *scene = alone;
     }
 }
 
-/// With a [`Trade`], E_c first draws this fraction (one in so many) of the regions it may draw,
-/// the worst: on data/eval's photos it buys paths for fewer than half of them and stops there
-/// (a quarter of the E_c calls), while on the emoji, where it buys most, it goes on to the rest.
-const FIRST_ROUND: usize = 4;
+/// With a [`Trade`], how many regions E_c draws first, the worst (each region is a crop E_c
+/// draws, about 9 ms of a 2-core CPU): on data/eval's photos it buys paths for fewer than half
+/// of them and stops there, while on the emoji, where it buys most, the rounds grow to every
+/// region it may draw.
+const FIRST_ROUND: usize = 8;
 
 /// How many of the paths with `gains` (largest first) to buy when the k-th costs the merges
 /// that free k regions (`merged(k)`: the error they add): the k with the largest gain less
@@ -169,8 +182,6 @@ fn fallback_only(target: &Rgb32FImage, segmentation: &Segmentation, fallback: Fa
 
 /// An E_c path that lowered the error where it was tried.
 struct Tried {
-    /// Its place in the scene.
-    index: usize,
     /// The error it took away.
     gain: f64,
     /// The region it was drawn for.
@@ -179,26 +190,46 @@ struct Tried {
     path: Path,
 }
 
-/// Paints the background, then region after region of `fallback` in painter's order its
-/// fallback path and each of `proposals[region]` that lowers the error over the regions painted
-/// so far (in its least-squares colour); returns the E_c paths kept.
-fn paint_with(scene: &mut Scene, fallback: &FallbackDrawing, mut proposals: Vec<Vec<Path>>) -> Vec<Tried> {
-    scene.push(Placed { shape: fallback.background.into(), region: None, origin: Origin::Background });
-    let mut painted = vec![false; fallback.order.len()];
+impl Tried {
+    /// Its place in `scene`, which holds it.
+    fn position(&self, scene: &Scene) -> usize {
+        let shape = Shape::Path(self.path);
+        scene
+            .paths()
+            .iter()
+            .position(|placed| placed.region == Some(self.region) && placed.shape == shape)
+            .expect("a path kept is in the scene")
+    }
+}
+
+/// Tries each of `proposals[region]` on `scene`, a drawing whose regions come in painter's order
+/// `order` (their fallback paths, and E_c paths kept before): a path goes in right after its
+/// region's paths, in its least-squares colour over what is drawn, if it lowers the error over
+/// the pixels of the regions up to its own (later regions cover the rest). It is judged painted
+/// over the drawing as it is, later regions and all: over those pixels they differ from the
+/// drawing at its place in painter's order only along their anti-aliased edges, and nothing is
+/// painted again but, once per region, the boxes of the paths it kept. Returns the paths kept.
+fn paint_with(scene: &mut Scene, order: &[u32], mut proposals: Vec<Vec<Path>>) -> Vec<Tried> {
+    let mut painted = vec![false; order.len()];
     let mut kept = Vec::new();
-    for (&region, shape) in fallback.order.iter().zip(&fallback.regions) {
+    let mut next = 1; // past the background
+    for &region in order {
         painted[region as usize] = true;
-        if let Some(shape) = shape {
-            scene.push(Placed { shape: shape.clone(), region: Some(region), origin: Origin::Fallback });
+        while next < scene.len() && scene.paths()[next].region == Some(region) {
+            next += 1;
         }
+        let before = scene.len();
         for path in std::mem::take(&mut proposals[region as usize]) {
             let scope = Scope::Regions(&painted);
             let path = scene.fit_colour(&path, scope).unwrap_or(path);
             let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Coarse };
             if let Some(gain) = scene.try_push(placed, scope) {
-                kept.push(Tried { index: scene.len() - 1, gain, region, path });
+                kept.push(Tried { gain, region, path });
             }
         }
+        let added = scene.len() - before;
+        scene.move_last(added, next);
+        next += added;
     }
     kept
 }
@@ -208,7 +239,7 @@ fn keep_best(scene: &mut Scene, kept: &[Tried], most: usize) {
     if kept.len() > most {
         let mut dropped = vec![false; scene.len()];
         for tried in &kept[most..] {
-            dropped[tried.index] = true;
+            dropped[tried.position(scene)] = true;
         }
         scene.retain(|index, _| !dropped[index]);
     }

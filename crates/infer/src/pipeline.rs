@@ -1,8 +1,8 @@
 //! The whole image → SVG job as one call, [`run`]: what `infer`, `eval`, `tune` and any other
 //! front end use, so that every figure they print is what a user of `infer` gets.
 //!
-//! SuperSVG-B is stages over one [`Scene`]: segment (the best of a few segmentations, or the
-//! automatic budget's cut) → coarse (background, fallbacks, E_c) → refine (E_r); SuperSVG-F
+//! SuperSVG-B is stages over one [`Scene`]: segment (the image's merge tree, cut at the
+//! budget's regions) → coarse (background, fallbacks, E_c) → refine (E_r); SuperSVG-F
 //! fine-tunes the scene it is handed ([`Outcome::finetuned`]); export writes the SVG from the
 //! scene and measures its canvas, which is never rendered again.
 
@@ -21,7 +21,7 @@ use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
 use crate::refine::draw_refinement;
 use crate::scene::{Scene, StageCounts};
-use crate::segmentation::{AutoBudget, auto_budget, choose_segmentation, max_regions};
+use crate::segmentation::{AutoBudget, Segmented, auto_budget, hierarchy, max_regions};
 
 /// The most paths [`run`] draws: at 20 000, segmenting, fitting and the exact canvas take about
 /// 10 s at 512 px; more paths than that is more regions than such an image has of
@@ -255,7 +255,7 @@ pub fn run_with_progress(
     let point = operating_point(models, job.operating_point);
     let most = max_regions(width, height);
     let mut warnings = Vec::new();
-    let (paths, regions, free) = match job.paths {
+    let (paths, regions, tree) = match job.paths {
         PathBudget::Count(paths) => {
             if !(2..=MAX_PATHS).contains(&paths) {
                 return Err(VectorizeError::Budget(paths));
@@ -270,29 +270,30 @@ pub fn run_with_progress(
             if asked > most && job.regions.is_some() {
                 warnings.push(Warning::RegionsLowered { asked, used: most, width, height });
             }
-            (paths, asked.min(most), None)
+            let regions = asked.min(most);
+            (paths, regions, hierarchy(target, regions, job.compactness)?)
         }
         PathBudget::Auto(auto) => {
             if job.regions.is_some() {
                 return Err(VectorizeError::RegionsWithAuto);
             }
             let choice = auto_budget(target, &point, job.compactness, &auto)?;
-            let regions = choice.free.regions.len();
-            (choice.paths, regions, Some(choice.free))
+            (choice.paths, choice.regions, choice.hierarchy)
         }
     };
-    let segmented = choose_segmentation(target, regions, &point, job.compactness, job.tolerance, free)?;
-    let mut scene = Scene::new(target.clone(), segmented.segmentation);
+    let Segmented { hierarchy, segmentation, fallback } =
+        Segmented::new(target, tree, regions, job.tolerance);
+    let mut scene = Scene::new(target.clone(), segmentation);
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let trade = job.regions.is_none().then_some(Trade { tolerance: job.tolerance });
+    let trade = job.regions.is_none().then_some(Trade { hierarchy: &hierarchy, tolerance: job.tolerance });
     let budget = CoarseBudget {
         paths: point.coarse_paths(paths),
         total: paths - point.reserved_for_refine(paths),
         trade,
     };
-    draw_coarse(&models.coarse, &models.config, &mut scene, segmented.fallback, budget, job.batch, device);
+    draw_coarse(&models.coarse, &models.config, &mut scene, fallback, budget, job.batch, device);
     let coarse = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();

@@ -214,6 +214,27 @@ impl Scene {
         }
     }
 
+    /// Moves the last `count` paths to `index` in painter's order, keeping their order, and
+    /// paints their boxes again, so the paths after them cover them there.
+    ///
+    /// # Panics
+    /// If there are fewer than `count` paths, or `index` is past where they start.
+    pub fn move_last(&mut self, count: usize, index: usize) {
+        let start = self.paths.len() - count;
+        assert!(index <= start, "paths move back in painter's order");
+        if count == 0 || index == start {
+            return;
+        }
+        let (width, height) = self.size();
+        let moved: Vec<Placed> = self.paths.drain(start..).collect();
+        let boxes = moved.iter().filter_map(|placed| placed.shape.pixel_box(width, height));
+        let union = boxes.reduce(|a, b| a.union(&b));
+        self.paths.splice(index..index, moved);
+        if let Some(union) = union {
+            self.repaint_box(union);
+        }
+    }
+
     /// `path` in the fill colour that brings the drawing closest to the image over the `scope`
     /// pixels it covers when painted over what is drawn: least squares over its anti-aliased
     /// coverage, each channel clamped to [0, 1]. A model places a path better than it picks
@@ -322,8 +343,10 @@ impl Scene {
         self.repaint();
     }
 
-    /// Renders the canvas again from the paths.
-    fn repaint(&mut self) {
+    /// Renders the canvas again from the paths, in one pass over the whole canvas: what a box
+    /// painted again in a window of its own ([`Scene::retain`], [`Scene::move_last`]) gives
+    /// but for a few anti-aliased pixels (see `raster::paint_exact`), exactly.
+    pub fn repaint(&mut self) {
         self.canvas.fill(tiny_skia::Color::TRANSPARENT);
         let size = self.size();
         for placed in &self.paths {

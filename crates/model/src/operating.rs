@@ -1,12 +1,12 @@
 //! Where a path budget goes at inference: measured for a pair of models, stored with them.
 
+use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
-use superpixel::SegmentOptions;
 
 use crate::config::InvalidSetting;
 
 /// How inference splits a path budget between superpixel regions, the coarse model's paths and
-/// the refinement model's paths, and how the regions are made. Which split draws best depends
+/// the refinement model's paths. Which split draws best depends
 /// on how well each model draws, so it is found by measurement (`tune`) and stored in the
 /// coarse checkpoint.
 ///
@@ -16,28 +16,39 @@ use crate::config::InvalidSetting;
 /// each only where it draws better than the region it replaces (`infer::coarse::Trade`): the
 /// regions start at [`OperatingPoint::filling_regions`], N − ⌊N·refine_share⌋ − 1.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "Stored")]
 pub struct OperatingPoint {
     /// Share of the budget E_c's paths may take, in [0, 1) (0: E_c is not run).
     pub coarse_share: f32,
     /// Share of the budget kept for E_r, in [0, 1) (0: no refinement).
     pub refine_share: f32,
-    /// SLIC is asked for this many times the regions, merged down by colour
-    /// (`superpixel::segment`); at least 1.
-    pub oversegment: f32,
-    /// The least isoperimetric quotient of a merged region (`SegmentOptions::min_compactness`),
-    /// in [0, 1].
-    #[serde(default)]
-    pub min_compactness: f32,
 }
 
 impl Default for OperatingPoint {
     /// For models nothing was measured for: every path a region of its own, the drawing that
-    /// does not depend on how well the models draw; regions from SLIC at three times the count,
-    /// merged by colour into shapes no less compact than 0.3 (the best fallback drawing on
-    /// data/eval/photos; see docs/operating-point.md).
+    /// does not depend on how well the models draw.
     fn default() -> Self {
-        Self { coarse_share: 0.0, refine_share: 0.0, oversegment: 3.0, min_compactness: 0.3 }
+        Self { coarse_share: 0.0, refine_share: 0.0 }
+    }
+}
+
+/// An operating point as checkpoints store it. Those written before every drawing's regions
+/// were made one way (`superpixel::SegmentOptions::ward`) also say how to make them
+/// (`oversegment`, `min_compactness`): read, and no longer used. Any other key is refused.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Stored {
+    coarse_share: f32,
+    refine_share: f32,
+    #[serde(default, rename = "oversegment")]
+    _oversegment: Option<IgnoredAny>,
+    #[serde(default, rename = "min_compactness")]
+    _min_compactness: Option<IgnoredAny>,
+}
+
+impl From<Stored> for OperatingPoint {
+    fn from(stored: Stored) -> Self {
+        Self { coarse_share: stored.coarse_share, refine_share: stored.refine_share }
     }
 }
 
@@ -57,18 +68,7 @@ impl OperatingPoint {
                 self.coarse_share, self.refine_share
             ));
         }
-        if !(self.oversegment.is_finite() && self.oversegment >= 1.0) {
-            return invalid(format!("oversegment must be at least 1, got {}", self.oversegment));
-        }
-        if !(0.0..=1.0).contains(&self.min_compactness) {
-            return invalid(format!("min_compactness must be within [0, 1], got {}", self.min_compactness));
-        }
         Ok(())
-    }
-
-    /// How regions are made at this point, with SLIC at `compactness`.
-    pub fn segment_options(&self, compactness: f32) -> SegmentOptions {
-        SegmentOptions { compactness, oversegment: self.oversegment, min_compactness: self.min_compactness }
     }
 
     /// Number of regions for a budget of `paths` when they fill it beside E_r's share and E_c
@@ -97,8 +97,7 @@ mod tests {
     fn regions_leave_room_for_every_stage() {
         let mosaic = OperatingPoint::default();
         assert_eq!(mosaic.filling_regions(500), 499);
-        let split =
-            OperatingPoint { coarse_share: 0.1, refine_share: 0.2, oversegment: 1.0, min_compactness: 0.0 };
+        let split = OperatingPoint { coarse_share: 0.1, refine_share: 0.2 };
         // 1 + 399 + 100 = 500; E_c's 50 are bought from the 399.
         assert_eq!(split.filling_regions(500), 399);
         assert_eq!((split.coarse_paths(500), split.reserved_for_refine(500)), (50, 100));
@@ -106,7 +105,17 @@ mod tests {
         assert!(OperatingPoint { refine_share: 1.0, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { coarse_share: -0.1, ..mosaic }.validate().is_err());
         assert!(OperatingPoint { coarse_share: 0.5, refine_share: 0.5, ..mosaic }.validate().is_err());
-        assert!(OperatingPoint { oversegment: 0.5, ..mosaic }.validate().is_err());
-        assert!(OperatingPoint { min_compactness: 1.5, ..mosaic }.validate().is_err());
+    }
+
+    #[test]
+    fn points_stored_with_how_regions_were_once_made_still_read() {
+        let old = r#"{"coarse_share":0.2,"refine_share":0.0,"oversegment":3.0,"min_compactness":0.3}"#;
+        let point: OperatingPoint = serde_json::from_str(old).unwrap();
+        assert_eq!(point, OperatingPoint { coarse_share: 0.2, refine_share: 0.0 });
+        let written = serde_json::to_string(&point).unwrap();
+        assert_eq!(written, r#"{"coarse_share":0.2,"refine_share":0.0}"#);
+        assert_eq!(serde_json::from_str::<OperatingPoint>(&written).unwrap(), point);
+        let typo = r#"{"coarse_share":0.2,"refine_shares":0.0}"#;
+        assert!(serde_json::from_str::<OperatingPoint>(typo).is_err(), "unknown keys are refused");
     }
 }

@@ -132,12 +132,7 @@ fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
     assert_eq!(exported.model.to_vec(), direct.model.to_vec());
 
     // The input contract and a measured operating point travel with the weights.
-    let point = model::OperatingPoint {
-        coarse_share: 0.2,
-        refine_share: 0.25,
-        oversegment: 1.5,
-        min_compactness: 0.4,
-    };
+    let point = model::OperatingPoint { coarse_share: 0.2, refine_share: 0.25 };
     let tuned = Checkpoint { inference: Some(point), ..Checkpoint::load(&half).unwrap() };
     let tuned_path = dir.join("tuned.ckpt");
     tuned.save(&tuned_path).unwrap();

@@ -129,13 +129,78 @@ pub struct SegmentOptions {
     /// Merges whose union would have an isoperimetric quotient (4πn/P², π/4 for a square of
     /// pixels) below this are made only when nothing else is left to merge.
     pub min_compactness: f32,
+    /// SLIC's Gaussian pre-smoothing (pixels; [`SlicOptions::sigma`]).
+    pub sigma: f32,
+    /// SLIC's rounds at most ([`SlicOptions::max_iterations`]).
+    pub iterations: usize,
+    /// SLIC's fragments of a cluster too small to stand alone are kept as regions of their own
+    /// ([`SlicOptions::min_size_factor`] 0), for the merge by colour to join where they fit,
+    /// instead of being joined to whatever region lies left of them.
+    pub keep_fragments: bool,
 }
 
 impl Default for SegmentOptions {
+    /// SLIC as the method runs it (compactness 30, [`SlicOptions::default`]), not merged.
     fn default() -> Self {
-        Self { compactness: 30.0, oversegment: 1.0, min_compactness: 0.0 }
+        let slic = SlicOptions::default();
+        Self {
+            compactness: 30.0,
+            oversegment: 1.0,
+            min_compactness: 0.0,
+            sigma: slic.sigma,
+            iterations: slic.max_iterations,
+            keep_fragments: false,
+        }
     }
 }
+
+impl SegmentOptions {
+    /// Regions that take the shape of an image's colour areas, for drawing it with flat fills:
+    /// SLIC for [`WARD_OVERSEGMENT`] times the regions at a tenth of `compactness` (30 is the
+    /// method's), unsmoothed, its fragments kept, then merged by colour with no compactness
+    /// floor. The finer and the less regular the pieces merging starts from, the nearer Ward's
+    /// merges come to the least flat-fill error: on 12 photos and 20 emoji of data/train at 512
+    /// px, at 500 / 2000 regions, the flat fill draws 30.24 / 33.66 dB and 41.42 / 45.43 dB,
+    /// against 28.29 / 32.77 and 38.40 / 41.35 for 64 times the regions at a third of the
+    /// compactness with SLIC's smoothing and fragments joined to their left neighbours (the
+    /// previous recipe), in about half the time. Smoothing moves edges, joined fragments land in
+    /// whatever region lies left of them, and at a compactness of 10 the clusters stay rounder
+    /// than the colour areas.
+    pub fn ward(compactness: f32) -> Self {
+        Self {
+            compactness: compactness / 10.0,
+            oversegment: WARD_OVERSEGMENT,
+            min_compactness: 0.0,
+            sigma: 0.0,
+            keep_fragments: true,
+            ..Self::default()
+        }
+    }
+
+    /// The SLIC options of the over-segmentation into `segments` (before merging).
+    pub fn slic_options(&self, segments: usize) -> SlicOptions {
+        let defaults = SlicOptions::default();
+        SlicOptions {
+            n_segments: segments,
+            compactness: self.compactness,
+            sigma: self.sigma,
+            max_iterations: self.iterations,
+            min_size_factor: if self.keep_fragments { 0.0 } else { defaults.min_size_factor },
+            ..defaults
+        }
+    }
+
+    /// How many segments SLIC is asked for, for `regions` regions of an image of `pixels`
+    /// pixels: `regions × oversegment`, at most the pixels.
+    pub fn segments_for(&self, regions: usize, pixels: usize) -> usize {
+        ((regions as f64 * self.oversegment as f64).ceil() as usize).clamp(1, pixels.max(1))
+    }
+}
+
+/// How many times the regions [`SegmentOptions::ward`] asks SLIC for: 4 draws 0.1–1.3 dB worse
+/// (photos, emoji) at 500 and 2000 regions, 16 no better on photos and worse on emoji, at up to
+/// twice the time.
+pub const WARD_OVERSEGMENT: f32 = 8.0;
 
 /// `image` split into at most `regions` superpixels: SLIC for `regions × oversegment` (capped
 /// at the pixel count), then merged down by colour. SLIC itself returns a few percent fewer
@@ -150,9 +215,7 @@ pub fn segment(
         return Err(SlicError::BadOption("oversegment must be at least 1"));
     }
     let pixels = (image.width() as usize) * (image.height() as usize);
-    let asked = ((regions as f64 * options.oversegment as f64).ceil() as usize).clamp(1, pixels.max(1));
-    let slic_options =
-        SlicOptions { n_segments: asked, compactness: options.compactness, ..Default::default() };
+    let slic_options = options.slic_options(options.segments_for(regions, pixels));
     Ok(slic(image, &slic_options)?.limit_regions(image, regions.max(1), options.min_compactness as f64))
 }
 

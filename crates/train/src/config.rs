@@ -457,6 +457,7 @@ impl DataConfig {
             compactness: self.compactness,
             oversegment: self.oversegment,
             min_compactness: self.min_compactness,
+            ..Default::default()
         }
     }
 

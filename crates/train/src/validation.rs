@@ -8,10 +8,10 @@
 use std::path::PathBuf;
 
 use image::Rgb32FImage;
-use model::{InvalidSetting, MIN_REGION_PIXELS, ModelConfig, OperatingPoint};
+use model::{InvalidSetting, MIN_REGION_PIXELS, ModelConfig};
 use raster::{Path, coverage_exact, paint_exact};
 use serde::{Deserialize, Serialize};
-use superpixel::{RegionCrop, segment};
+use superpixel::{RegionCrop, SegmentOptions, segment};
 use tiny_skia::{Color, Pixmap};
 
 use crate::config::DataConfig;
@@ -27,9 +27,9 @@ pub struct ValidationConfig {
     /// Crops in the set, taken evenly from the images.
     pub crops: usize,
     /// Region counts of the images' segmentations, spread geometrically over the images from
-    /// the first to the second. Regions are made as inference's default operating point makes
-    /// them (SLIC merged by colour), whatever the training data uses, so runs with different
-    /// `[data]` are scored on the same crops.
+    /// the first to the second. Regions are made as inference makes them
+    /// (`superpixel::SegmentOptions::ward`), whatever the training data uses, so runs with
+    /// different `[data]` are scored on the same crops.
     pub segments: [usize; 2],
     /// Steps between scores (and previews of the validation crops).
     pub every: usize,
@@ -105,7 +105,7 @@ impl Validation {
             let t = if images.len() > 1 { index as f64 / (images.len() - 1) as f64 } else { 0.0 };
             let count = (low as f64 * (high as f64 / low as f64).powf(t)).round() as usize;
             let count = count.clamp(1, (scene.width() * scene.height()) as usize);
-            let options = OperatingPoint::default().segment_options(data.compactness);
+            let options = SegmentOptions::ward(data.compactness);
             let segmentation = segment(scene, count, &options)
                 .map_err(|source| DataError::ValidationSegment { path: folder.clone(), source })?;
             let usable: Vec<u32> = (0..segmentation.regions.len() as u32)

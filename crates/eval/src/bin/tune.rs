@@ -1,7 +1,7 @@
 //! `tune`: measures SuperSVG-B over a grid of operating points (how a path budget is split
-//! between regions, E_c and E_r, and how regions are made) and stores the best with the model.
+//! between regions, E_c and E_r) and stores the best with the model.
 //!
-//! `tune DIR --paths 500,2000 --coarse-share 0,0.1 --refine-share 0,0.25 --oversegment 1,3
+//! `tune DIR --paths 500,2000 --coarse-share 0,0.1 --refine-share 0,0.25
 //!       --out docs/operating-point.md [--write models/coarse.ckpt]`
 //!
 //! Each point draws every image through `infer::run`, as `infer` would with that point. Scores are
@@ -38,12 +38,6 @@ struct Args {
     /// Values of the budget share kept for E_r.
     #[arg(long, value_delimiter = ',', default_value = "0,0.1,0.25")]
     refine_share: Vec<f32>,
-    /// Values of the SLIC oversegmentation factor.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,3,4")]
-    oversegment: Vec<f32>,
-    /// Values of the least compactness of merged regions.
-    #[arg(long, value_delimiter = ',', default_value = "0")]
-    min_compactness: Vec<f32>,
     /// The markdown table to write.
     #[arg(long)]
     out: PathBuf,
@@ -116,13 +110,9 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
     let mut points = Vec::new();
     for &coarse_share in &args.coarse_share {
         for &refine_share in &args.refine_share {
-            for &oversegment in &args.oversegment {
-                for &min_compactness in &args.min_compactness {
-                    let point = OperatingPoint { coarse_share, refine_share, oversegment, min_compactness };
-                    point.validate().map_err(|err| anyhow!("grid point {point:?}: {err}"))?;
-                    points.push(point);
-                }
-            }
+            let point = OperatingPoint { coarse_share, refine_share };
+            point.validate().map_err(|err| anyhow!("grid point {point:?}: {err}"))?;
+            points.push(point);
         }
     }
     let images: Vec<_> = files_in(&args.dir)?.iter().filter_map(|path| load(path, args.size).ok()).collect();
@@ -159,7 +149,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
     let mut text = format!(
         "# Operating point\n\nSuperSVG-B on `{}` ({} images, {} px), models `{}` and `{}`. PSNR of the exact \
          rendering, mean over images; paths per stage (background / fallback / coarse / refine), mean over \
-         images.\n\nCommand: `{}`\n\n| coarse share | refine share | oversegment | min compactness |",
+         images.\n\nCommand: `{}`\n\n| coarse share | refine share |",
         args.dir.display(),
         images.len(),
         args.size,
@@ -172,16 +162,12 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
     }
     let _ = write!(
         text,
-        " mean PSNR |\n| ---: | ---: | ---: | ---: |{} ---: |\n",
+        " mean PSNR |\n| ---: | ---: |{} ---: |\n",
         " ---: | ---: | ---: |".repeat(args.paths.len())
     );
     for m in &measured {
         let p = m.point;
-        let _ = write!(
-            text,
-            "| {} | {} | {} | {} |",
-            p.coarse_share, p.refine_share, p.oversegment, p.min_compactness
-        );
+        let _ = write!(text, "| {} | {} |", p.coarse_share, p.refine_share);
         for b in 0..args.paths.len() {
             let _ = write!(text, " {:.2} | {} | {:.2} |", m.psnr[b], m.stages[b].cell(), m.seconds[b]);
         }
