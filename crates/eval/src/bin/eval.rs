@@ -98,6 +98,10 @@ struct Args {
     /// goes beside it (`REPORT-rate.png` and `.svg`).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     sweep: Vec<usize>,
+    /// SuperSVG's regions drawn along shared boundary curves fitted within this many pixels
+    /// (`infer --tolerance`, 0 to 8), in every drawing of ours; by default traced polygons.
+    #[arg(long)]
+    tolerance: Option<f32>,
 }
 
 /// One entry of `--peers`: a peer, or nothing (`--peers ''`).
@@ -243,6 +247,9 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         bail!("--finetune-secs: {seconds} is not a number of seconds");
     }
+    if let Some(tolerance) = args.tolerance.filter(|t| !(0.0..=8.0).contains(t)) {
+        bail!("--tolerance: {tolerance} is not a tolerance in pixels (0 to 8)");
+    }
     let mut images = files_in(&args.dir)?;
     images.truncate(args.limit.unwrap_or(usize::MAX));
     if images.is_empty() {
@@ -378,7 +385,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             if args.sweep.contains(&budget) {
                 tables.push(Table::Sweep(Setting::Paths(budget)));
             }
-            let job = Job { paths: PathBudget::Count(budget), ..Job::default() };
+            let job = Job { paths: PathBudget::Count(budget), tolerance: args.tolerance, ..Job::default() };
             let outcome = run(&models, &loaded, &job, &device)?;
             let (drawn, seconds, anatomy) = ours(table, Method::OursB, &outcome);
             for &table in &tables {
@@ -435,7 +442,8 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 record(table, Method::Vtracer, &drawn, seconds, None, &mut tiles);
             }
         }
-        let job = Job { paths: PathBudget::Auto(AutoBudget::default()), ..Job::default() };
+        let auto = PathBudget::Auto(AutoBudget::default());
+        let job = Job { paths: auto, tolerance: args.tolerance, ..Job::default() };
         let outcome = run(&models, &loaded, &job, &device)?;
         let (drawn, seconds, anatomy) = ours(Table::Own, Method::OursAuto, &outcome);
         record(Table::Own, Method::OursAuto, &drawn, seconds, anatomy, &mut tiles);
