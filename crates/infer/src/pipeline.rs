@@ -87,7 +87,8 @@ pub struct Job {
     /// Regions drawn along shared boundaries fitted with curves, straying at most this far
     /// (pixels of the working image) from the traced ones: larger draws with fewer curves and
     /// bytes, 0 keeps every traced corner. `None` (the default): each region's traced polygon,
-    /// grown under its later neighbours, which draws photos better at equal paths.
+    /// grown under its later neighbours, which draws photos better at equal paths, but for
+    /// flat art under an automatic budget ([`AutoBudget::flat_tolerance`]).
     pub tolerance: Option<f32>,
     /// Crops per network call.
     pub batch: usize,
@@ -255,7 +256,7 @@ pub fn run_with_progress(
     let point = operating_point(models, job.operating_point);
     let most = max_regions(width, height);
     let mut warnings = Vec::new();
-    let (paths, regions, tree) = match job.paths {
+    let (paths, regions, tree, tolerance) = match job.paths {
         PathBudget::Count(paths) => {
             if !(2..=MAX_PATHS).contains(&paths) {
                 return Err(VectorizeError::Budget(paths));
@@ -271,23 +272,23 @@ pub fn run_with_progress(
                 warnings.push(Warning::RegionsLowered { asked, used: most, width, height });
             }
             let regions = asked.min(most);
-            (paths, regions, hierarchy(target, regions, job.compactness)?)
+            (paths, regions, hierarchy(target, regions, job.compactness)?, job.tolerance)
         }
         PathBudget::Auto(auto) => {
             if job.regions.is_some() {
                 return Err(VectorizeError::RegionsWithAuto);
             }
             let choice = auto_budget(target, &point, job.compactness, &auto)?;
-            (choice.paths, choice.regions, choice.hierarchy)
+            let tolerance = job.tolerance.or(choice.flat.then_some(auto.flat_tolerance));
+            (choice.paths, choice.regions, choice.hierarchy, tolerance)
         }
     };
-    let Segmented { hierarchy, segmentation, fallback } =
-        Segmented::new(target, tree, regions, job.tolerance);
+    let Segmented { hierarchy, segmentation, fallback } = Segmented::new(target, tree, regions, tolerance);
     let mut scene = Scene::new(target.clone(), segmentation);
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let trade = job.regions.is_none().then_some(Trade { hierarchy: &hierarchy, tolerance: job.tolerance });
+    let trade = job.regions.is_none().then_some(Trade { hierarchy: &hierarchy, tolerance });
     let budget = CoarseBudget {
         paths: point.coarse_paths(paths),
         total: paths - point.reserved_for_refine(paths),
