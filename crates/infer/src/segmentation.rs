@@ -71,11 +71,15 @@ pub struct AutoBudget {
     pub min_gain: f64,
     /// The most paths.
     pub max_paths: usize,
-    /// Flat art (a picture whose regions filled flat reach `target_psnr` within `max_paths`)
+    /// Flat art (a picture whose regions filled flat reach `target_psnr` within `flat_paths`)
     /// has its regions drawn along shared boundary curves fitted within this many pixels
     /// (`Job::tolerance`), when the job names no tolerance: at the few tens of paths such a
     /// picture gets, curves take fewer bytes than traced polygons and draw its edges better.
     pub flat_tolerance: f32,
+    /// The most paths at which a picture that reaches `target_psnr` counts as flat art. Past
+    /// a few tens of paths traced polygons draw more than curves at their size, and photos
+    /// with smooth areas reach the target there too.
+    pub flat_paths: usize,
 }
 
 impl Default for AutoBudget {
@@ -86,9 +90,15 @@ impl Default for AutoBudget {
     /// measures. Curves within 1 pixel on flat art: on the first 12 emoji of data/eval the
     /// automatic budget draws 4.8 KB at LPIPS 0.0136 (34.13 dB) with them and 7.0 KB at 0.0302
     /// (34.77 dB) with traced polygons, where vtracer's defaults draw 9.8 KB at 0.0200 (28.14 dB);
-    /// at 500 paths and more, traced polygons draw more (emoji and photos).
+    /// at 500 paths and more, traced polygons draw more (emoji and photos). Flat art up to 64
+    /// paths: on those emoji curves draw 32 paths in 5.7 KB at 34.96 dB / LPIPS 0.0139 and 64 in
+    /// 10.5 KB at 36.33 / 0.0097 (polygons: 8.1 KB, 35.06 / 0.0323; 11.8 KB, 36.71 / 0.0246),
+    /// but 125 in 21.3 KB at 36.71 / 0.0106 (polygons 19.4 KB, 38.07 / 0.0193) and 250 in
+    /// 46.6 KB at 37.84 / 0.0110 (polygons 33.8 KB, 39.96 / 0.0134); every one of them stops
+    /// at 64 or fewer, while the photos of data/eval that reach 30 dB do so at 256 paths and
+    /// more, where curves cost them 0.5–0.9 dB (and bytes at 1024).
     fn default() -> Self {
-        Self { target_psnr: 30.0, min_gain: 0.25, max_paths: 2000, flat_tolerance: 1.0 }
+        Self { target_psnr: 30.0, min_gain: 0.25, max_paths: 2000, flat_tolerance: 1.0, flat_paths: 64 }
     }
 }
 
@@ -109,7 +119,8 @@ pub struct AutoChoice {
     pub regions: usize,
     /// The tree the budget was measured on, made for at least `regions` regions.
     pub hierarchy: Hierarchy,
-    /// Whether the picture is flat art: its regions filled flat reached the target.
+    /// Whether the picture is flat art: its regions filled flat reached the target within
+    /// [`AutoBudget::flat_paths`].
     pub flat: bool,
 }
 
@@ -151,7 +162,7 @@ pub fn auto_budget(
     };
     let knee = (0..ladder.len()).find(|&i| ladder[i + 1..].iter().all(|&later| !pays(ladder[i], later)));
     let paths = ladder[knee.unwrap_or(ladder.len() - 1)].0;
-    let flat = ladder.last().is_some_and(|&(_, value)| value >= auto.target_psnr);
+    let flat = ladder.iter().any(|&(paths, value)| paths <= auto.flat_paths && value >= auto.target_psnr);
     Ok(AutoChoice { paths, regions: regions_for(paths), hierarchy: tree.1, flat })
 }
 
@@ -186,6 +197,7 @@ mod tests {
         let many = auto_budget(&detailed, &point, 30.0, &auto).unwrap();
         assert!(many.paths >= 128, "256 flat squares got only {} paths", many.paths);
         assert!(many.paths <= auto.max_paths);
+        assert!(!many.flat, "flat colours that need {} paths are drawn as photos are", many.paths);
         // Noise no count of flat regions draws at 30 dB: not flat art.
         let noise = Rgb32FImage::from_fn(64, 64, |x, y| {
             let v = |c: u32| {
