@@ -3,6 +3,8 @@
 //! for with a region ([`Trade`]), so E_c draws only where it beats spending the same paths on
 //! regions.
 
+use std::sync::Arc;
+
 use burn::tensor::Device;
 use image::Rgb32FImage;
 use model::{CoarseModel, CropBatch, ModelConfig, crop_to_image};
@@ -125,7 +127,7 @@ pub fn draw_coarse(
         *scene = alone;
         return;
     }
-    let cut = hierarchy.cut(&target, regions - bought);
+    let cut = Arc::new(hierarchy.cut(&target, regions - bought));
     let fine_to_cut = region_map(&segmentation, &cut);
     let mut bought: Vec<(usize, &Tried)> =
         kept[..bought].iter().map(|tried| (tried.position(scene), tried)).collect();
@@ -176,7 +178,11 @@ fn worth_their_regions(gains: &[f64], merged: impl Fn(usize) -> f64) -> usize {
 }
 
 /// The scene of `fallback` alone, the drawing of `segmentation` of `target`.
-fn fallback_only(target: &Rgb32FImage, segmentation: &Segmentation, fallback: FallbackDrawing) -> Scene {
+fn fallback_only(
+    target: &Arc<Rgb32FImage>,
+    segmentation: &Arc<Segmentation>,
+    fallback: FallbackDrawing,
+) -> Scene {
     Scene::drawn(target.clone(), segmentation.clone(), fallback.placed(), fallback.canvas)
 }
 

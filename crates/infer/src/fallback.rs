@@ -7,6 +7,8 @@
 //! Every result starts from it, so no pixel is left uncovered whatever the later stages keep,
 //! and a region's learned paths are kept only where they beat it.
 
+use std::sync::Arc;
+
 use image::Rgb32FImage;
 use raster::{Contour, Outline, Path, Segment, Shape, fit_curve, fit_outline, paint_exact};
 use rayon::prelude::*;
@@ -203,7 +205,7 @@ impl FallbackDrawing {
     /// Traces every region of `segmentation` (in parallel; with a `tolerance`, as shared
     /// boundaries fitted within it, see [`traced`]), fits the background of `image` under them,
     /// renders the drawing and scores it.
-    pub fn new(image: &Rgb32FImage, segmentation: &Segmentation, tolerance: Option<f32>) -> Self {
+    pub fn new(image: &Arc<Rgb32FImage>, segmentation: &Arc<Segmentation>, tolerance: Option<f32>) -> Self {
         let order = painter_order(segmentation);
         let regions = traced(segmentation, &order, tolerance);
         let background = background(image, &regions.iter().flatten().cloned().collect::<Vec<_>>());
@@ -265,8 +267,9 @@ mod tests {
 
     #[test]
     fn away_from_boundaries_the_drawing_is_the_mosaic() {
-        let image = wavy_image();
-        let segmentation = slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap();
+        let image = Arc::new(wavy_image());
+        let segmentation =
+            Arc::new(slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap());
         let drawn = raster::render_exact(
             &FallbackDrawing::new(&image, &segmentation, None).paths(),
             96,
@@ -359,14 +362,16 @@ mod tests {
 
     #[test]
     fn a_flat_picture_is_its_background_alone_and_the_canvas_is_its_rendering() {
-        let flat = Rgb32FImage::from_pixel(48, 32, Rgb([0.2, 0.6, 0.4]));
-        let segmentation = slic(&flat, &SlicOptions { n_segments: 12, ..Default::default() }).unwrap();
+        let flat = Arc::new(Rgb32FImage::from_pixel(48, 32, Rgb([0.2, 0.6, 0.4])));
+        let segmentation =
+            Arc::new(slic(&flat, &SlicOptions { n_segments: 12, ..Default::default() }).unwrap());
         let drawing = FallbackDrawing::new(&flat, &segmentation, None);
         assert!(drawing.regions.iter().all(Option::is_none), "a region drew nothing yet was kept");
         assert_eq!(drawing.paths().len(), 1);
         assert!(drawing.error < 1e-3, "{}", drawing.error);
-        let image = wavy_image();
-        let segmentation = slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap();
+        let image = Arc::new(wavy_image());
+        let segmentation =
+            Arc::new(slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap());
         let drawing = FallbackDrawing::new(&image, &segmentation, None);
         assert!(drawing.regions.iter().filter(|r| r.is_some()).count() > 30, "regions that draw are kept");
         let rendered = raster::render_exact(&drawing.paths(), 96, 64, [1.0; 3]);

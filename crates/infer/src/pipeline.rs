@@ -7,6 +7,7 @@
 //! scene and measures its canvas, which is never rendered again.
 
 use std::ops::ControlFlow;
+use std::sync::Arc;
 use std::time::Instant;
 
 use burn::tensor::Device;
@@ -283,8 +284,10 @@ pub fn run_with_progress(
             (choice.paths, choice.regions, choice.hierarchy, tolerance)
         }
     };
-    let Segmented { hierarchy, segmentation, fallback } = Segmented::new(target, tree, regions, tolerance);
-    let mut scene = Scene::new(target.clone(), segmentation);
+    // The stages share one copy of the image and of its regions.
+    let target = Arc::new(target.clone());
+    let Segmented { hierarchy, segmentation, fallback } = Segmented::new(&target, tree, regions, tolerance);
+    let mut scene = Scene::new(target, segmentation);
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();

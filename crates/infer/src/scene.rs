@@ -6,6 +6,8 @@
 //! path did not help. The canvas is touched only inside the pixel box of the path being painted,
 //! so it always equals a full exact rendering of the paths without ever re-rendering it.
 
+use std::sync::Arc;
+
 use common::PixelBox;
 use image::{Rgb, Rgb32FImage, RgbImage};
 use model::ModelConfig;
@@ -92,11 +94,13 @@ pub enum Scope<'a> {
     Regions(&'a [bool]),
 }
 
-/// The image, its superpixels, the paths drawn so far and their exact rendering.
+/// The image, its superpixels, the paths drawn so far and their exact rendering. The image and
+/// the superpixels are shared (`Arc`): a copy of the scene (a drawing kept to fall back to)
+/// copies only its paths and canvas.
 #[derive(Clone)]
 pub struct Scene {
-    target: Rgb32FImage,
-    segmentation: Segmentation,
+    target: Arc<Rgb32FImage>,
+    segmentation: Arc<Segmentation>,
     paths: Vec<Placed>,
     canvas: Pixmap,
 }
@@ -106,7 +110,8 @@ impl Scene {
     ///
     /// # Panics
     /// If the segmentation was not computed on an image of `target`'s size.
-    pub fn new(target: Rgb32FImage, segmentation: Segmentation) -> Self {
+    pub fn new(target: impl Into<Arc<Rgb32FImage>>, segmentation: impl Into<Arc<Segmentation>>) -> Self {
+        let target = target.into();
         let canvas = Pixmap::new(target.width(), target.height()).expect("a non-empty image");
         Self::drawn(target, segmentation, Vec::new(), canvas)
     }
@@ -117,11 +122,12 @@ impl Scene {
     /// # Panics
     /// If the segmentation or the canvas is not of `target`'s size.
     pub fn drawn(
-        target: Rgb32FImage,
-        segmentation: Segmentation,
+        target: impl Into<Arc<Rgb32FImage>>,
+        segmentation: impl Into<Arc<Segmentation>>,
         paths: Vec<Placed>,
         canvas: Pixmap,
     ) -> Self {
+        let (target, segmentation) = (target.into(), segmentation.into());
         let size = target.dimensions();
         assert_eq!(size, (segmentation.width, segmentation.height), "target and segmentation sizes");
         assert_eq!(size, (canvas.width(), canvas.height()), "target and canvas sizes");
@@ -129,12 +135,12 @@ impl Scene {
     }
 
     /// The image being drawn (working resolution).
-    pub fn target(&self) -> &Rgb32FImage {
+    pub fn target(&self) -> &Arc<Rgb32FImage> {
         &self.target
     }
 
     /// Its superpixels.
-    pub fn segmentation(&self) -> &Segmentation {
+    pub fn segmentation(&self) -> &Arc<Segmentation> {
         &self.segmentation
     }
 

@@ -7,6 +7,8 @@
 //! automatic budget reads every rung's error off it and cuts it where it stops; the coarse
 //! stage prices the regions it merges away for E_c's paths on it.
 
+use std::sync::Arc;
+
 use image::Rgb32FImage;
 use model::OperatingPoint;
 use superpixel::{Hierarchy, SegmentOptions, Segmentation, SlicError, slic};
@@ -29,7 +31,7 @@ pub struct Segmented {
     /// the regions it merges away to make room for E_c's paths with it, and cuts it again.
     pub hierarchy: Hierarchy,
     /// The regions drawn.
-    pub segmentation: Segmentation,
+    pub segmentation: Arc<Segmentation>,
     /// Each region's outline in its mean colour over the background, with its rendering.
     pub fallback: FallbackDrawing,
 }
@@ -37,8 +39,13 @@ pub struct Segmented {
 impl Segmented {
     /// `image` split into `regions` regions of `hierarchy` (made on `image`), with its fallback
     /// drawing (boundaries fitted within `tolerance` pixels, if given).
-    pub fn new(image: &Rgb32FImage, hierarchy: Hierarchy, regions: usize, tolerance: Option<f32>) -> Self {
-        let segmentation = hierarchy.cut(image, regions);
+    pub fn new(
+        image: &Arc<Rgb32FImage>,
+        hierarchy: Hierarchy,
+        regions: usize,
+        tolerance: Option<f32>,
+    ) -> Self {
+        let segmentation = Arc::new(hierarchy.cut(image, regions));
         let fallback = FallbackDrawing::new(image, &segmentation, tolerance);
         Self { hierarchy, segmentation, fallback }
     }
@@ -224,7 +231,7 @@ mod tests {
 
     #[test]
     fn the_drawn_regions_are_the_trees_cut_and_its_fallback_is_scored_exactly() {
-        let image = bands_and_disc();
+        let image = Arc::new(bands_and_disc());
         let regions = 24;
         let segmented = Segmented::new(&image, hierarchy(&image, regions, 30.0).unwrap(), regions, None);
         assert_eq!(segmented.segmentation.regions.len(), regions);
@@ -234,7 +241,7 @@ mod tests {
         assert!((flat - read).abs() <= 1e-6 * flat, "the tree's {read} against the cut's {flat}");
         // What merging freely buys where round regions cannot follow the picture: better than
         // the method's own superpixels (plain SLIC at 30).
-        let method = superpixel::segment(&image, regions, &SegmentOptions::default()).unwrap();
+        let method = Arc::new(superpixel::segment(&image, regions, &SegmentOptions::default()).unwrap());
         let method_error = FallbackDrawing::new(&image, &method, None).error;
         assert!(
             segmented.fallback.error < 0.5 * method_error,

@@ -2,6 +2,7 @@
 //! fine-tuned, at one budget, with the bundled models.
 
 use std::ops::ControlFlow;
+use std::sync::Arc;
 
 use burn::tensor::Device;
 use common::decode::load;
@@ -35,8 +36,10 @@ fn no_stage_lowers_the_psnr() {
     let refine = models.refine.as_ref().unwrap();
     let budget = 60;
     for image in images() {
-        let segmentation =
-            segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap();
+        let image = Arc::new(image);
+        let segmentation = Arc::new(
+            segment(&image, 20, &SegmentOptions { oversegment: 3.0, ..Default::default() }).unwrap(),
+        );
         let score = |scene: &Scene| psnr(&scene.canvas_image(), &image);
 
         let drawing = FallbackDrawing::new(&image, &segmentation, None);
@@ -102,6 +105,7 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
     let total = 241;
     let mut bought = 0;
     for image in [blobs(0), blobs(1), images().remove(0)] {
+        let image = Arc::new(image);
         let tree = infer::segmentation::hierarchy(&image, total - 1, 30.0).unwrap();
         let Segmented { hierarchy, segmentation, fallback: drawing } =
             Segmented::new(&image, tree, total - 1, None);
@@ -134,8 +138,8 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
 #[test]
 fn fine_tuning_reports_the_psnr_it_reaches() {
     let device = Device::flex();
-    let image = images().remove(1);
-    let segmentation = segment(&image, 12, &SegmentOptions::default()).unwrap();
+    let image = Arc::new(images().remove(1));
+    let segmentation = Arc::new(segment(&image, 12, &SegmentOptions::default()).unwrap());
     let regions = segmentation.regions.len();
     let mut scene = Scene::new(image.clone(), segmentation.clone());
     let models = Models::bundled(false, &device).unwrap();
