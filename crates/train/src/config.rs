@@ -92,6 +92,20 @@ pub enum RegionPick {
     Worst,
 }
 
+/// How a scene is split into the regions samples are cut from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionRecipe {
+    /// SLIC at `compactness`, asked for `oversegment` × the count and merged by colour above
+    /// `min_compactness` (`superpixel::SegmentOptions`): what the shipped models trained on.
+    #[default]
+    Slic,
+    /// Inference's regions (`superpixel::SegmentOptions::ward`): Ward's merges of a fine,
+    /// unsmoothed SLIC at `compactness`, so E_c trains on the regions it is asked to draw.
+    /// `oversegment` and `min_compactness` are not read.
+    Ward,
+}
+
 /// The `[data]` table.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -107,6 +121,8 @@ pub struct DataConfig {
     pub segments: [usize; 2],
     /// SLIC compactness (the method uses 30).
     pub compactness: f32,
+    /// How regions are made.
+    pub recipe: RegionRecipe,
     /// SLIC is asked for this many times the count, merged by colour down to it, as inference's
     /// operating point does (`superpixel::segment`); 1 is plain SLIC.
     pub oversegment: f32,
@@ -139,6 +155,7 @@ impl Default for DataConfig {
             synthetic_weight: 0.5,
             segments: [8, 48],
             compactness: 30.0,
+            recipe: RegionRecipe::Slic,
             oversegment: 1.0,
             min_compactness: 0.0,
             regions_per_scene: 4,
@@ -453,11 +470,14 @@ impl Validate for RefineConfig {
 impl DataConfig {
     /// How scenes are split into regions.
     pub fn segment_options(&self) -> superpixel::SegmentOptions {
-        superpixel::SegmentOptions {
-            compactness: self.compactness,
-            oversegment: self.oversegment,
-            min_compactness: self.min_compactness,
-            ..Default::default()
+        match self.recipe {
+            RegionRecipe::Slic => superpixel::SegmentOptions {
+                compactness: self.compactness,
+                oversegment: self.oversegment,
+                min_compactness: self.min_compactness,
+                ..Default::default()
+            },
+            RegionRecipe::Ward => superpixel::SegmentOptions::ward(self.compactness),
         }
     }
 
@@ -576,6 +596,19 @@ mod tests {
         assert!(err.contains("fast") && err.contains("exact"), "{err}");
         let err = problem::<CoarseConfig>("[model]\npatch_size = 7\n[data]\n[train]\n");
         assert!(err.contains("model.input_size"), "{err}");
+        let err = problem::<CoarseConfig>("[data]\nrecipe = \"watershed\"\n[train]\n");
+        assert!(err.contains("watershed") && err.contains("ward"), "{err}");
+    }
+
+    #[test]
+    fn the_ward_recipe_makes_inferences_regions() {
+        let config =
+            parse::<CoarseConfig>("[data]\nrecipe = \"ward\"\ncompactness = 20.0\n[train]\n").unwrap();
+        assert_eq!(config.data.segment_options(), superpixel::SegmentOptions::ward(20.0));
+        let plain = parse::<CoarseConfig>("[data]\noversegment = 3.0\n[train]\n").unwrap();
+        assert_eq!(plain.data.recipe, RegionRecipe::Slic, "SLIC unless told");
+        assert_eq!(plain.data.segment_options().oversegment, 3.0);
+        assert_ne!(plain.data.segment_options(), superpixel::SegmentOptions::ward(30.0));
     }
 
     #[test]

@@ -133,5 +133,29 @@ fn refinement_needs_a_coarse_checkpoint() {
         ],
     );
     assert!(err.contains("cannot resume") && err.contains("no optimizer state"), "{err}");
+
+    // Fine-tuning E_c starts from a coarse checkpoint of the config's model (an exported one
+    // will do: no optimizer state is needed); a refinement checkpoint or another model is refused.
+    let smoke_coarse = smoke("smoke-coarse.toml");
+    let tuned = dir.join("tuned");
+    let args = |init: &Path, out: &Path| {
+        ["--config", smoke_coarse.to_str().unwrap(), "--out", out.to_str().unwrap(), "--steps", "1"]
+            .into_iter()
+            .map(String::from)
+            .chain(["--init".to_string(), init.to_str().unwrap().to_string()])
+            .collect::<Vec<_>>()
+    };
+    let ok = Command::new(COARSE).args(args(&exported, &tuned)).output().unwrap();
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    assert!(tuned.join("coarse.ckpt").is_file());
+    let refused = |init: &Path| {
+        let args = args(init, &dir.join("refused"));
+        fails(COARSE, &args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let err = refused(&wrong);
+    assert!(err.contains("refine.ckpt") && err.contains("refine checkpoint"), "{err}");
+    let bundled = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/coarse.ckpt");
+    let err = refused(&bundled);
+    assert!(err.contains("models/coarse.ckpt") && err.contains("is not the [model] of"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1,11 +1,13 @@
 //! `train-coarse`: trains the coarse model E_c.
 //!
-//! `train-coarse --config configs/coarse.toml [--out DIR] [--backend flex|ndarray|wgpu] [--steps N] [--resume]`
+//! `train-coarse --config configs/coarse.toml [--out DIR] [--backend flex|ndarray|wgpu] [--steps N] [--resume]
+//! [--init CKPT]`
 
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
-use model::CoarseModel;
+use model::{CoarseModel, load_coarse};
 use train::cli::{CommonArgs, finish};
 use train::config::{self, CoarseConfig};
 use train::objective::CoarseObjective;
@@ -18,13 +20,21 @@ use train::validation::Validation;
 struct Args {
     #[command(flatten)]
     common: CommonArgs,
+    /// Start from this coarse checkpoint's weights instead of a random initialization
+    /// (fine-tuning; its model must be the config's). A resumed run takes its own checkpoint's.
+    #[arg(long)]
+    init: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
-    finish(run(Args::parse().common))
+    let args = Args::parse();
+    finish(run(args.common, args.init))
 }
 
-fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::Error>> {
+fn run(
+    args: CommonArgs,
+    init: Option<PathBuf>,
+) -> Result<train::trainer::Summary, Box<dyn std::error::Error>> {
     // Before any image is read: a stop while decoding is heard, and ends the program cleanly.
     train::trainer::catch_interrupts();
     let mut config: CoarseConfig = config::load(&args.config)?;
@@ -34,10 +44,23 @@ fn run(args: CommonArgs) -> Result<train::trainer::Summary, Box<dyn std::error::
     let dir = args.out.unwrap_or_else(|| "runs/coarse".into());
     let device = args.backend.autodiff_device()?;
     let objective = CoarseObjective::new(&config);
+    let init = match init {
+        Some(path) => {
+            let (model, model_config) = load_coarse(&path, &device)?;
+            if model_config != config.model.0 {
+                let config_path = args.config.display();
+                return Err(
+                    format!("{}: its model is not the [model] of {config_path}", path.display()).into()
+                );
+            }
+            Some(model)
+        }
+        None => None,
+    };
     let resume = if args.resume { Some(resume_from::<CoarseObjective>(&dir)?) } else { None };
     let path = checkpoint_path::<CoarseObjective>(&dir);
     let start = model_from(
-        |c| CoarseModel::new(c, &device),
+        |c| init.clone().unwrap_or_else(|| CoarseModel::new(c, &device)),
         &config.model.0,
         resume,
         &path,
