@@ -13,7 +13,7 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
     let folder = dir.to_str().unwrap();
     let out = dir.join("report.md");
     // (flag and value, what stderr must name)
-    let cases: [(&[&str], &str); 14] = [
+    let cases: [(&[&str], &str); 16] = [
         (&["--paths", "0"], "--paths"),
         (&["--paths", "1"], "--paths"),
         (&["--paths", "1000000"], "--paths"),
@@ -28,6 +28,8 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
         (&["--limit", "x"], "--limit"),
         (&["--sweep", "1"], "--sweep"),
         (&["--sweep", "64,x"], "--sweep"),
+        (&["--operating-point", "paper"], "--peers paper"),
+        (&["--operating-point", "0.9,0.2"], "--operating-point"),
     ];
     for (flags, name) in cases {
         let mut child = Command::new(EVAL)
@@ -59,6 +61,22 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A report whose folder does not exist is refused before any image is drawn, naming it.
+#[test]
+fn a_report_that_cannot_be_written_is_refused_first() {
+    let dir = std::env::temp_dir().join(format!("supersvg-eval-nofolder-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    image::RgbImage::from_pixel(20, 10, image::Rgb([10, 200, 30])).save(dir.join("a.png")).unwrap();
+    let out = dir.join("missing/report.md");
+    let result =
+        Command::new(EVAL).arg(&dir).args(["--out", out.to_str().unwrap(), "--peers", ""]).output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("report.md: cannot write in"), "{stderr}");
+    assert!(!stderr.contains("[1/1]"), "an image was drawn first: {stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// The report compares sizes as well as quality: an SVG KB column (a dash for the pixel-exact
 /// mosaic, which is no SVG), a row without E_r, and a section where each method picks its own
 /// budget, SuperSVG-B with `--paths auto`.
@@ -71,7 +89,16 @@ fn report_has_svg_sizes_and_the_auto_budget() {
     let out = dir.join("report.md");
     let result = Command::new(EVAL)
         .arg(&dir)
-        .args(["--out", out.to_str().unwrap(), "--paths", "16", "--size", "48", "--peers", "slic,no-refine"])
+        .args([
+            "--out",
+            out.to_str().unwrap(),
+            "--paths",
+            "16",
+            "--size",
+            "48",
+            "--peers",
+            "slic,no-refine,paper",
+        ])
         .output()
         .unwrap();
     assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
@@ -86,6 +113,8 @@ fn report_has_svg_sizes_and_the_auto_budget() {
     assert!(row("SuperSVG-B (ours)").parse::<f64>().unwrap() > 0.0, "{report}");
     assert!(row("SuperSVG-B (ours), --paths auto").parse::<f64>().unwrap() > 0.0, "{report}");
     assert!(row("SuperSVG-B without E_r (--no-refine)").parse::<f64>().unwrap() > 0.0, "{report}");
+    let paper = "SuperSVG-B, the paper's inference (--operating-point paper)";
+    assert!(row(paper).parse::<f64>().unwrap() > 0.0, "{report}");
     assert_eq!(row("SLIC regions, mean colour"), "—", "{report}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

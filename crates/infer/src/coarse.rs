@@ -272,7 +272,7 @@ fn worst_regions(scene: &Scene, fallback: &FallbackDrawing, count: usize) -> Vec
 
 /// E_c on every crop, `batch` at a time: each crop's visible paths, opaque, in the image's unit
 /// square, in the model's painter's order.
-fn propose(
+pub(crate) fn propose(
     coarse: &CoarseModel,
     crops: &[RegionCrop],
     (width, height): (u32, u32),

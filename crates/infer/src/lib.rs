@@ -18,6 +18,7 @@ pub mod coarse;
 pub mod fallback;
 pub mod finetune;
 pub mod models;
+pub mod paper;
 pub mod pipeline;
 pub mod refine;
 pub mod scene;
@@ -25,7 +26,7 @@ pub mod segmentation;
 
 pub use models::Models;
 pub use pipeline::{
-    BudgetParseError, Job, MAX_PATHS, Outcome, PathBudget, Report, Seconds, VectorizeError, Warning, run,
-    run_with_progress,
+    BudgetParseError, BudgetSplit, Job, MAX_PATHS, Outcome, PathBudget, Report, Seconds, VectorizeError,
+    Warning, run, run_with_progress,
 };
 pub use segmentation::AutoBudget;

@@ -20,7 +20,8 @@ use superpixel::SlicError;
 use crate::coarse::{CoarseBudget, Trade, draw_coarse};
 use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
-use crate::refine::draw_refinement;
+use crate::paper::draw_paper;
+use crate::refine::{RefineTally, draw_refinement};
 use crate::scene::{Scene, StageCounts};
 use crate::segmentation::{AutoBudget, Segmented, auto_budget, hierarchy, max_regions};
 
@@ -66,6 +67,57 @@ impl std::fmt::Display for PathBudget {
 #[error("{0:?} is not a path budget: a number from 2 to {MAX_PATHS}, or auto")]
 pub struct BudgetParseError(pub String);
 
+/// Where a job's path budget goes (`infer --operating-point`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum BudgetSplit {
+    /// The operating point stored with the models ([`Models::operating_point`]).
+    #[default]
+    Stored,
+    /// This operating point.
+    Point(OperatingPoint),
+    /// The paper's inference ([`crate::paper`]): for models trained with the paper preset, to
+    /// be set beside the paper's tables. A fixed budget only; no region count.
+    Paper,
+}
+
+impl std::str::FromStr for BudgetSplit {
+    type Err = SplitParseError;
+
+    /// `stored`, `paper`, or `COARSE,REFINE`: the shares of [`OperatingPoint`] (`0.2,0.1`).
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let invalid = |why: String| SplitParseError(text.to_string(), why);
+        match text {
+            "stored" => Ok(BudgetSplit::Stored),
+            "paper" => Ok(BudgetSplit::Paper),
+            _ => {
+                let Some((coarse, refine)) = text.split_once(',') else {
+                    return Err(invalid("not stored, paper or two shares".into()));
+                };
+                let share = |value: &str| value.trim().parse::<f32>().map_err(|e| invalid(e.to_string()));
+                let point = OperatingPoint { coarse_share: share(coarse)?, refine_share: share(refine)? };
+                point.validate().map_err(|e| invalid(e.0))?;
+                Ok(BudgetSplit::Point(point))
+            }
+        }
+    }
+}
+
+impl Serialize for BudgetSplit {
+    /// An operating point as its shares; the others by name (`"stored"`, `"paper"`).
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            BudgetSplit::Stored => serializer.serialize_str("stored"),
+            BudgetSplit::Point(point) => point.serialize(serializer),
+            BudgetSplit::Paper => serializer.serialize_str("paper"),
+        }
+    }
+}
+
+/// Text that is no [`BudgetSplit`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0:?} is not an operating point ({1}): stored, paper, or COARSE,REFINE shares such as 0.2,0")]
+pub struct SplitParseError(pub String, pub String);
+
 /// Everything that decides how an image becomes an SVG.
 #[derive(Clone, Debug)]
 pub struct Job {
@@ -77,8 +129,8 @@ pub struct Job {
     /// is kept, and E_c draws only with what it leaves. Lowered to one per
     /// [`crate::segmentation::PIXELS_PER_REGION`] pixels, with a [`Warning`].
     pub regions: Option<usize>,
-    /// How the budget is split; by default the one stored with the models.
-    pub operating_point: Option<OperatingPoint>,
+    /// How the budget is split; by default the operating point stored with the models.
+    pub operating_point: BudgetSplit,
     /// SuperSVG-F: fine-tune every path against the image after B.
     pub finetune: Option<FinetuneOptions>,
     /// How the SVG is written (decimals).
@@ -100,7 +152,7 @@ impl Default for Job {
         Self {
             paths: PathBudget::Count(500),
             regions: None,
-            operating_point: None,
+            operating_point: BudgetSplit::Stored,
             finetune: None,
             svg: SvgOptions::default(),
             compactness: 30.0,
@@ -131,6 +183,10 @@ pub enum VectorizeError {
     /// A region count was given with an automatic budget, which chooses its own.
     #[error("a number of regions needs a number of paths, not an automatic budget")]
     RegionsWithAuto,
+    /// The paper's inference was asked for with an automatic budget or a region count: it
+    /// cuts its own regions for a number of paths.
+    #[error("the paper's operating point takes a number of paths and cuts its own regions")]
+    PaperNeedsCount,
     /// The image could not be segmented.
     #[error(transparent)]
     Segmentation(#[from] SlicError),
@@ -207,8 +263,10 @@ pub struct Report {
     pub paths_by_stage: StageCounts,
     /// Superpixels.
     pub regions: usize,
-    /// How the budget was split.
-    pub operating_point: OperatingPoint,
+    /// How the budget was split (an operating point, or `"paper"`).
+    pub operating_point: BudgetSplit,
+    /// What E_r proposed, kept and gained (SuperSVG-B's; fine-tuning leaves it as it was).
+    pub refinement: RefineTally,
     /// Mean squared error of the drawing at the working size (RGB in [0, 1]).
     pub mse: f64,
     /// Its PSNR (dB).
@@ -251,6 +309,9 @@ pub fn run_with_progress(
     device: &Device,
     on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> Result<Outcome, VectorizeError> {
+    if job.operating_point == BudgetSplit::Paper {
+        return run_paper(models, image, job, device, on_step);
+    }
     let started = Instant::now();
     let target = &image.image;
     let (width, height) = target.dimensions();
@@ -301,17 +362,66 @@ pub fn run_with_progress(
     let coarse = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    if let Some(refine) = &models.refine {
-        draw_refinement(refine, &models.config, &mut scene, paths, job.batch, device);
-    }
+    let refinement = match &models.refine {
+        Some(refine) => draw_refinement(refine, &models.config, &mut scene, paths, job.batch, device),
+        None => RefineTally::default(),
+    };
     let refine = clock.elapsed().as_secs_f64();
 
     if matches!(job.paths, PathBudget::Count(_)) && scene.len() < paths {
         warnings.push(Warning::FewerPaths { drawn: scene.len(), budget: paths });
     }
     let seconds = Seconds { decode: image.seconds, superpixels, coarse, refine, ..Seconds::default() };
-    let drawn =
-        Drawn { auto_budget: matches!(job.paths, PathBudget::Auto(_)), budget: paths, point, seconds };
+    let drawn = Drawn {
+        auto_budget: matches!(job.paths, PathBudget::Auto(_)),
+        budget: paths,
+        point: BudgetSplit::Point(point),
+        refinement,
+        seconds,
+    };
+    finish(scene, image, job, drawn, warnings, on_step)
+}
+
+/// [`run_with_progress`] at the paper's operating point ([`crate::paper`]).
+fn run_paper(
+    models: &Models,
+    image: &Loaded,
+    job: &Job,
+    device: &Device,
+    on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+) -> Result<Outcome, VectorizeError> {
+    let PathBudget::Count(paths) = job.paths else {
+        return Err(VectorizeError::PaperNeedsCount);
+    };
+    if !(2..=MAX_PATHS).contains(&paths) {
+        return Err(VectorizeError::Budget(paths));
+    }
+    if job.regions.is_some() {
+        return Err(VectorizeError::PaperNeedsCount);
+    }
+    let clock = Instant::now();
+    let (scene, refinement) = draw_paper(models, &Arc::new(image.image.clone()), paths, job.batch, device)?;
+    // Segmenting and both networks are one pass here; the stage split of the others does not
+    // apply, so the time goes to `coarse`.
+    let seconds =
+        Seconds { decode: image.seconds, coarse: clock.elapsed().as_secs_f64(), ..Seconds::default() };
+    let mut warnings = Vec::new();
+    if scene.len() < paths {
+        warnings.push(Warning::FewerPaths { drawn: scene.len(), budget: paths });
+    }
+    let drawn = Drawn { auto_budget: false, budget: paths, point: BudgetSplit::Paper, refinement, seconds };
+    finish(scene, image, job, drawn, warnings, on_step)
+}
+
+/// Exports `scene`, then fine-tunes it if the job asks for SuperSVG-F.
+fn finish(
+    scene: Scene,
+    image: &Loaded,
+    job: &Job,
+    drawn: Drawn,
+    warnings: Vec<Warning>,
+    on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+) -> Result<Outcome, VectorizeError> {
     let outcome = export(scene, image, job, drawn, warnings)?;
     match &job.finetune {
         Some(options) => outcome.finetuned(image, job, options, on_step),
@@ -320,9 +430,12 @@ pub fn run_with_progress(
 }
 
 /// The operating point a job uses: the one given, else the models' own, with no budget kept for
-/// E_r when there is none.
-pub fn operating_point(models: &Models, given: Option<OperatingPoint>) -> OperatingPoint {
-    let mut point = given.unwrap_or(models.operating_point);
+/// E_r when there is none. The paper's inference has none; it reads as the stored one here.
+pub fn operating_point(models: &Models, split: BudgetSplit) -> OperatingPoint {
+    let mut point = match split {
+        BudgetSplit::Point(point) => point,
+        BudgetSplit::Stored | BudgetSplit::Paper => models.operating_point,
+    };
     if models.refine.is_none() {
         point.refine_share = 0.0;
     }
@@ -333,7 +446,8 @@ pub fn operating_point(models: &Models, given: Option<OperatingPoint>) -> Operat
 struct Drawn {
     auto_budget: bool,
     budget: usize,
-    point: OperatingPoint,
+    point: BudgetSplit,
+    refinement: RefineTally,
     seconds: Seconds,
 }
 
@@ -354,7 +468,7 @@ fn export(
     let mse = common::mse(&canvas, &image.image);
     let ssim = common::ssim(&canvas, &image.image);
     let export = clock.elapsed().as_secs_f64();
-    let Drawn { auto_budget, budget, point, mut seconds } = drawn;
+    let Drawn { auto_budget, budget, point, refinement, mut seconds } = drawn;
     seconds.export = export;
     seconds.total = seconds.decode
         + seconds.superpixels
@@ -373,6 +487,7 @@ fn export(
         paths_by_stage: scene.counts(),
         regions: scene.segmentation().regions.len(),
         operating_point: point,
+        refinement,
         mse,
         psnr: common::psnr_of_mse(mse),
         ssim,
@@ -402,6 +517,7 @@ impl Outcome {
             auto_budget: report.auto_budget,
             budget: report.budget,
             point: report.operating_point,
+            refinement: report.refinement,
             seconds,
         };
         let mut outcome = export(scene, image, job, drawn, warnings)?;
@@ -424,5 +540,18 @@ mod tests {
         for text in ["2", "20000", "auto"] {
             assert_eq!(text.parse::<PathBudget>().unwrap().to_string(), text);
         }
+    }
+
+    #[test]
+    fn operating_points_read_as_on_the_command_line() {
+        assert_eq!("stored".parse::<BudgetSplit>(), Ok(BudgetSplit::Stored));
+        assert_eq!("paper".parse::<BudgetSplit>(), Ok(BudgetSplit::Paper));
+        let point = OperatingPoint { coarse_share: 0.2, refine_share: 0.1 };
+        assert_eq!("0.2, 0.1".parse::<BudgetSplit>(), Ok(BudgetSplit::Point(point)));
+        for bad in ["Paper", "0.2", "0.6,0.5", "1,0", "a,b", ""] {
+            assert!(bad.parse::<BudgetSplit>().is_err(), "{bad}");
+        }
+        let written = serde_json::to_string(&[BudgetSplit::Paper, BudgetSplit::Point(point)]).unwrap();
+        assert_eq!(written, r#"["paper",{"coarse_share":0.2,"refine_share":0.1}]"#);
     }
 }

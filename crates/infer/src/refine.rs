@@ -3,9 +3,24 @@
 
 use burn::tensor::Device;
 use model::{CropBatch, ModelConfig, RefineModel, canvas_cells, crop_to_image};
+use serde::Serialize;
 use superpixel::{RegionCrop, worst_first};
 
 use crate::scene::{Origin, Placed, Scene, Scope};
+
+/// What E_r did in a drawing: how many paths it proposed, how many lowered the error and were
+/// kept, and by how much they lowered it. What an E_r checkpoint is worth to inference (`eval`
+/// reports it per method; `--refine CKPT` scores another).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RefineTally {
+    /// Paths E_r proposed.
+    pub proposed: usize,
+    /// Paths kept.
+    pub kept: usize,
+    /// How much they raised the drawing's PSNR (dB, whole image): 10·log₁₀ of the squared
+    /// error before over after.
+    pub gain_db: f64,
+}
 
 /// Rounds of E_r until `scene` holds `budget` paths or no region is left to improve: each round
 /// ranks the regions by squared error, gives E_r (target, canvas) crops of the worst `batch`
@@ -20,6 +35,25 @@ pub fn draw_refinement(
     budget: usize,
     batch: usize,
     device: &Device,
+) -> RefineTally {
+    let before = scene.total_error();
+    let mut tally = RefineTally::default();
+    propose_and_keep(refine, config, scene, budget, batch, device, &mut tally);
+    if tally.kept > 0 {
+        tally.gain_db = 10.0 * (before / scene.total_error()).log10();
+    }
+    tally
+}
+
+/// The rounds of [`draw_refinement`], counting into `tally`.
+fn propose_and_keep(
+    refine: &RefineModel,
+    config: &ModelConfig,
+    scene: &mut Scene,
+    budget: usize,
+    batch: usize,
+    device: &Device,
+    tally: &mut RefineTally,
 ) {
     let regions = scene.segmentation().regions.len();
     let mut exhausted = vec![false; regions];
@@ -52,11 +86,13 @@ pub fn draw_refinement(
                 if scene.len() == budget {
                     return;
                 }
+                tally.proposed += 1;
                 let path = crop_to_image(path, crop, width, height);
                 let path = scene.fit_colour(&path, Scope::All).unwrap_or(path);
                 let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Refine };
                 if scene.try_push(placed, Scope::All).is_some() {
                     kept += 1;
+                    tally.kept += 1;
                 }
             }
             exhausted[region as usize] |= kept == 0;

@@ -153,6 +153,12 @@ fn commands_that_cannot_run_as_asked_are_refused_before_any_work() {
     std::fs::copy(&photo, fixture.path("c2/x.png")).unwrap();
     let p = |name: &str| fixture.path(name).to_str().unwrap().to_string();
     let original = std::fs::read(&photo).unwrap();
+    let paper = |flags: &[&str]| {
+        let mut args =
+            vec![p("photo.png"), "-o".into(), p("a.svg"), "--operating-point".into(), "paper".into()];
+        args.extend(flags.iter().map(|flag| flag.to_string()));
+        args
+    };
     // (arguments, what the error must say)
     let cases: Vec<(Vec<String>, &str)> = vec![
         (vec![p("photo.png"), "-o".into(), p("photo.png")], "must end in .svg"),
@@ -184,6 +190,8 @@ fn commands_that_cannot_run_as_asked_are_refused_before_any_work() {
             ],
             "below --paths",
         ),
+        (paper(&["--regions", "5"]), "--operating-point paper needs a number of --paths"),
+        (paper(&["--paths", "auto"]), "--operating-point paper needs a number of --paths"),
         (vec!["-".into(), "-".into(), "-o".into(), p("out/")], "only once"),
         (vec![p("photo.png"), p("c1/x.png"), "-o".into(), "-".into()], "stdout"),
     ];
@@ -205,7 +213,8 @@ fn wild_flag_values_exit_with_a_usage_error_and_never_hang() {
     let photo = fixture.path("photo.png").to_str().unwrap().to_string();
     let out = fixture.path("wild.svg").to_str().unwrap().to_string();
     let values = ["NaN", "inf", "-inf", "-1", "0", "1e30", "18446744073709551616", "", "x"];
-    for flag in ["--paths", "--size", "--regions", "--finetune-secs", "--finetune-steps"] {
+    for flag in ["--paths", "--size", "--regions", "--finetune-secs", "--finetune-steps", "--operating-point"]
+    {
         for value in values {
             let args = vec![photo.clone(), "-o".into(), out.clone(), format!("{flag}={value}")];
             let result = infer_within(&fixture, &args, 60);

@@ -6,7 +6,7 @@ use burn::tensor::Device;
 use common::Loaded;
 use image::{Rgb, Rgb32FImage};
 use infer::models::Identity;
-use infer::{AutoBudget, Job, Models, PathBudget, VectorizeError, run};
+use infer::{AutoBudget, BudgetSplit, Job, Models, PathBudget, VectorizeError, run};
 use model::OperatingPoint;
 
 mod support;
@@ -82,6 +82,57 @@ fn paths_cover_every_pixel_at_any_budget_and_region_count() {
             );
         }
     }
+}
+
+/// `--operating-point paper`: E_c's paths on budget/64 SLIC regions with no fallback path, E_r
+/// appended, within the budget and over the background path, so no pixel is left uncovered;
+/// a region count or an automatic budget is refused.
+#[test]
+fn the_papers_inference_draws_without_fallbacks_within_the_budget() {
+    let (models, image, device) = (models(true), photo(), Device::flex());
+    let paper = |paths| Job { operating_point: BudgetSplit::Paper, ..job(paths) };
+    for budget in [2, 40, 200] {
+        let outcome = run(&models, &image, &paper(budget), &device).unwrap();
+        let (report, stages) = (&outcome.report, outcome.report.paths_by_stage);
+        assert_eq!((stages.background, stages.fallback), (1, 0), "{budget}: {stages:?}");
+        assert!(report.paths <= budget, "{budget}: {} paths", report.paths);
+        assert!(stages.coarse + stages.refine > 0, "{budget}: the networks drew nothing");
+        assert_eq!(report.operating_point, BudgetSplit::Paper);
+        assert_eq!(report.refinement.kept, stages.refine, "E_r's paths are all appended");
+        assert_eq!(uncovered(&outcome.svg, 96, 64), 0, "{budget}");
+        if budget < 64 {
+            assert_eq!(report.regions, 1, "fewer than 64 paths: one region");
+        }
+        if budget == 200 {
+            assert!(stages.refine > 0, "E_r fills what E_c leaves: {stages:?}");
+        }
+    }
+    for refused in [
+        Job { regions: Some(5), ..paper(40) },
+        Job { paths: PathBudget::Auto(AutoBudget::default()), ..paper(40) },
+    ] {
+        assert_eq!(run(&models, &image, &refused, &device).err(), Some(VectorizeError::PaperNeedsCount));
+    }
+}
+
+/// The report says what E_r did: every refinement path is one it kept, of the proposals it
+/// tried, and together they raised the PSNR by what the report says.
+#[test]
+fn the_report_tallies_what_e_r_proposed_and_kept() {
+    let (both, image, device) = (models(true), photo(), Device::flex());
+    let point = OperatingPoint { coarse_share: 0.0, refine_share: 0.5 };
+    let split = Job { operating_point: BudgetSplit::Point(point), ..job(100) };
+    let outcome = run(&both, &image, &split, &device).unwrap();
+    let (tally, stages) = (outcome.report.refinement, outcome.report.paths_by_stage);
+    assert_eq!(tally.kept, stages.refine);
+    assert!(tally.kept > 0 && tally.proposed >= tally.kept, "{tally:?}");
+    // The drawing E_r was handed: the same regions, no E_r.
+    let regions = Some(outcome.report.regions);
+    let before = run(&models(false), &image, &Job { regions, ..split.clone() }, &device).unwrap().report;
+    assert_eq!(before.paths_by_stage.refine, 0);
+    let gained = outcome.report.psnr - before.psnr;
+    assert!(gained > 0.0 && (tally.gain_db - gained).abs() < 1e-6, "{tally:?}: {gained} dB");
+    assert_eq!(run(&models(false), &image, &split, &device).unwrap().report.refinement, Default::default());
 }
 
 #[test]

@@ -19,7 +19,7 @@ use clap::{Parser, ValueEnum};
 use common::chart::{self, Mark, Panel, Series};
 use common::decode::load;
 use common::folder::files_in;
-use common::write::{create_temporary_folder, write_atomic, write_png};
+use common::write::{create_temporary_folder, folder_of, probe_folder, write_atomic, write_png};
 use common::{WORKING_SIZES, mse, psnr, ssim};
 use eval::cli::{finish, load_models};
 use eval::lpips::Lpips;
@@ -31,8 +31,9 @@ use eval::rate::{RatePoint, at, frontier};
 use eval::spill::spill;
 use image::{Rgb32FImage, RgbImage};
 use infer::finetune::{Budget as FinetuneBudget, FinetuneOptions};
+use infer::refine::RefineTally;
 use infer::scene::{Origin, StageCounts};
-use infer::{AutoBudget, Job, MAX_PATHS, Outcome, PathBudget, run};
+use infer::{AutoBudget, BudgetSplit, Job, MAX_PATHS, Outcome, PathBudget, run};
 use raster::Backend;
 
 /// What `--peers` can add beside SuperSVG.
@@ -48,6 +49,9 @@ enum Peer {
     Fallback,
     /// SuperSVG-B without E_r: as `infer --paths N --no-refine` draws it (what E_r adds).
     NoRefine,
+    /// The paper's inference with the same models: as `infer --paths N --operating-point paper`
+    /// draws it (for models trained with the paper preset, beside the paper's tables).
+    Paper,
 }
 
 /// Dilation (pixels) of a region's mask before its paths' spill is measured: the margin the
@@ -70,7 +74,8 @@ struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
-    /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`): the files `infer`
+    /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`,
+    /// `IMAGE-paper-500.svg`): the files `infer`
     /// writes with the same settings.
     #[arg(long)]
     svgs: Option<PathBuf>,
@@ -98,6 +103,11 @@ struct Args {
     /// goes beside it (`REPORT-rate.png` and `.svg`).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     sweep: Vec<usize>,
+    /// How SuperSVG-B splits each budget (`infer --operating-point`): `stored`, or
+    /// `COARSE,REFINE` shares (`0,0.1` gives E_r a tenth; the `no-refine` row then shows what it
+    /// is worth). The paper's inference is the `paper` peer.
+    #[arg(long, default_value = "stored", value_parser = str::parse::<BudgetSplit>)]
+    operating_point: BudgetSplit,
     /// SuperSVG's regions drawn along shared boundary curves fitted within this many pixels
     /// (`infer --tolerance`, 0 to 8), in every drawing of ours; by default traced polygons.
     #[arg(long)]
@@ -137,6 +147,8 @@ enum Method {
     OursAuto,
     /// SuperSVG-B without E_r.
     OursNoRefine,
+    /// SuperSVG-B at the paper's operating point.
+    OursPaper,
     /// The fallback drawing alone.
     Fallback,
     /// vtracer with one knob searched to the budget.
@@ -157,6 +169,7 @@ impl Method {
             Method::OursF => "SuperSVG-F (ours)",
             Method::OursAuto => "SuperSVG-B (ours), --paths auto",
             Method::OursNoRefine => "SuperSVG-B without E_r (--no-refine)",
+            Method::OursPaper => "SuperSVG-B, the paper's inference (--operating-point paper)",
             Method::Fallback => "fallback alone (traced regions, mean colour)",
             Method::Vtracer => "vtracer",
             Method::VtracerDefault => "vtracer (default settings)",
@@ -224,6 +237,7 @@ struct Drawn {
 struct Anatomy {
     stages: StageCounts,
     spill: f64,
+    refinement: RefineTally,
 }
 
 fn main() -> ExitCode {
@@ -247,6 +261,9 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         bail!("--finetune-secs: {seconds} is not a number of seconds");
     }
+    if args.operating_point == BudgetSplit::Paper {
+        bail!("--operating-point paper: the paper's inference is a peer here (--peers paper)");
+    }
     if let Some(tolerance) = args.tolerance.filter(|t| !(0.0..=8.0).contains(t)) {
         bail!("--tolerance: {tolerance} is not a tolerance in pixels (0 to 8)");
     }
@@ -255,6 +272,10 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     if images.is_empty() {
         bail!("{}: no images", args.dir.display());
     }
+    // The report is written last: a folder it cannot go in is said now, before any work.
+    let report_folder = folder_of(&args.out);
+    probe_folder(report_folder)
+        .with_context(|| format!("{}: cannot write in {}", args.out.display(), report_folder.display()))?;
     if let Some(folder) = &args.svgs {
         std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
     }
@@ -354,6 +375,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                     (Method::OursF, Table::Paths(n)) => format!("f-{n}"),
                     (Method::Fallback, Table::Paths(n)) => format!("fallback-{n}"),
                     (Method::OursNoRefine, Table::Paths(n)) => format!("no-refine-{n}"),
+                    (Method::OursPaper, Table::Paths(n)) => format!("paper-{n}"),
                     (_, Table::Paths(n)) => format!("b-{n}"),
                     (_, Table::Own | Table::Sweep(_)) => "own".to_string(),
                 };
@@ -365,6 +387,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             let anatomy = Anatomy {
                 stages: outcome.report.paths_by_stage,
                 spill: spill(outcome.scene.paths(), outcome.scene.segmentation(), SPILL_DILATION),
+                refinement: outcome.report.refinement,
             };
             (rendered(&outcome.svg), outcome.report.seconds.total, Some(anatomy))
         };
@@ -385,7 +408,12 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             if args.sweep.contains(&budget) {
                 tables.push(Table::Sweep(Setting::Paths(budget)));
             }
-            let job = Job { paths: PathBudget::Count(budget), tolerance: args.tolerance, ..Job::default() };
+            let job = Job {
+                paths: PathBudget::Count(budget),
+                tolerance: args.tolerance,
+                operating_point: args.operating_point,
+                ..Job::default()
+            };
             let outcome = run(&models, &loaded, &job, &device)?;
             let (drawn, seconds, anatomy) = ours(table, Method::OursB, &outcome);
             for &table in &tables {
@@ -413,6 +441,12 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 let outcome = run(&regions_only, &loaded, &job, &device)?;
                 let (drawn, seconds, anatomy) = ours(table, Method::OursNoRefine, &outcome);
                 record(table, Method::OursNoRefine, &drawn, seconds, anatomy, &mut tiles);
+            }
+            if wanted(Peer::Paper) {
+                let paper = Job { operating_point: BudgetSplit::Paper, ..job.clone() };
+                let outcome = run(&models, &loaded, &paper, &device)?;
+                let (drawn, seconds, anatomy) = ours(table, Method::OursPaper, &outcome);
+                record(table, Method::OursPaper, &drawn, seconds, anatomy, &mut tiles);
             }
             if use_vtracer {
                 let traced = vtracer(&png, Some(budget), &scratch);
@@ -443,7 +477,12 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             }
         }
         let auto = PathBudget::Auto(AutoBudget::default());
-        let job = Job { paths: auto, tolerance: args.tolerance, ..Job::default() };
+        let job = Job {
+            paths: auto,
+            tolerance: args.tolerance,
+            operating_point: args.operating_point,
+            ..Job::default()
+        };
         let outcome = run(&models, &loaded, &job, &device)?;
         let (drawn, seconds, anatomy) = ours(Table::Own, Method::OursAuto, &outcome);
         record(Table::Own, Method::OursAuto, &drawn, seconds, anatomy, &mut tiles);
@@ -545,9 +584,11 @@ fn report(
             let stages: Vec<&str> = Origin::ALL.iter().map(|o| o.name()).collect();
             let _ = writeln!(
                 text,
-                "\nWhere SuperSVG's paths come from (mean paths per image by stage) and spill (share of \
-                 region paths' area outside their region dilated by {SPILL_DILATION} px):\n\n| method | {} | \
-                 spill |\n| --- |{} ---: |",
+                "\nWhere SuperSVG's paths come from (mean paths per image by stage), spill (share of \
+                 region paths' area outside their region dilated by {SPILL_DILATION} px), and what E_r \
+                 did (paths kept of those it proposed, summed over images; the PSNR its kept paths \
+                 added, mean):\n\n| method | {} | spill | E_r kept / proposed | E_r dB |\n| --- |{} ---: | \
+                 ---: | ---: |",
                 stages.join(" | "),
                 " ---: |".repeat(stages.len())
             );
@@ -561,7 +602,15 @@ fn report(
                     })
                     .collect();
                 let spill = anatomy().map(|a| a.spill).sum::<f64>() / rows.len() as f64;
-                let _ = writeln!(text, "| {} | {} | {spill:.3} |", method.name(), per_stage.join(" | "));
+                let kept: usize = anatomy().map(|a| a.refinement.kept).sum();
+                let proposed: usize = anatomy().map(|a| a.refinement.proposed).sum();
+                let gain = anatomy().map(|a| a.refinement.gain_db).sum::<f64>() / rows.len() as f64;
+                let _ = writeln!(
+                    text,
+                    "| {} | {} | {spill:.3} | {kept} / {proposed} | {gain:+.2} |",
+                    method.name(),
+                    per_stage.join(" | ")
+                );
             }
         }
         text.push('\n');

@@ -19,7 +19,7 @@ use common::folder::files_in;
 use common::write::write_atomic;
 use eval::cli::{finish, load_models};
 use infer::scene::{Origin, StageCounts};
-use infer::{Job, PathBudget, run};
+use infer::{BudgetSplit, Job, PathBudget, run};
 use model::{Checkpoint, OperatingPoint};
 use raster::Backend;
 
@@ -132,8 +132,11 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         let weight = 1.0 / images.len() as f64;
         for (b, &paths) in args.paths.iter().enumerate() {
             for image in &images {
-                let job =
-                    Job { paths: PathBudget::Count(paths), operating_point: Some(point), ..Job::default() };
+                let job = Job {
+                    paths: PathBudget::Count(paths),
+                    operating_point: BudgetSplit::Point(point),
+                    ..Job::default()
+                };
                 let report = run(&models, image, &job, &device)?.report;
                 result.seconds[b] += report.seconds.total * weight;
                 result.psnr[b] += report.psnr * weight;

@@ -18,7 +18,7 @@ use common::{Loaded, WORKING_SIZES};
 use image::{Rgb32FImage, RgbImage};
 use infer::finetune::{Budget, FinetuneOptions, Progress};
 use infer::models::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, bundled};
-use infer::{Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
+use infer::{BudgetSplit, Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
 use raster::{Backend, MAX_DECIMALS, SvgOptions};
 use serde::Serialize;
 
@@ -59,8 +59,8 @@ struct Args {
     #[arg(long, default_value = "flex")]
     backend: Backend,
     /// Long side of the working resolution in pixels, 16 to 8192 (the SVG keeps the input's size).
-    /// Time and memory grow with its pixels: at 4096 a photo takes about 20 s and 0.9 GB, at
-    /// 8192 about a minute and 3.5 GB (2 cores).
+    /// Time and memory grow with its pixels: at 4096 a photo takes about 9 s and 0.9 GB, at
+    /// 8192 a flat picture about 45 s and 3.5 GB (2 cores).
     #[arg(long, default_value_t = 512, value_parser = working_size)]
     size: u32,
     /// Number of superpixels, below `--paths`. By default the regions fill the budget (less
@@ -70,6 +70,13 @@ struct Args {
     /// leaves. At most one per 16 pixels of the working image: more is lowered, with a warning.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..MAX_PATHS as u64))]
     regions: Option<u64>,
+    /// How the budget is split between regions, E_c and E_r: `stored` (the operating point
+    /// stored with the coarse model), `COARSE,REFINE` (shares of the budget E_c may buy and E_r
+    /// keeps, e.g. `0.2,0.1`), or `paper`: the paper's inference for models trained with the
+    /// paper preset (budget/64 SLIC regions, every visible E_c path, one pass of E_r over a
+    /// second SLIC; no fallback paths, no acceptance test; a background path under all).
+    #[arg(long, default_value = "stored", value_parser = str::parse::<BudgetSplit>)]
+    operating_point: BudgetSplit,
     /// Write a PNG rendering of the result (`.png` file, or a folder).
     #[arg(long)]
     preview: Option<PathBuf>,
@@ -431,6 +438,11 @@ fn run(args: &Args) -> anyhow::Result<usize> {
     if let (PathBudget::Auto(_), Some(_)) = (args.paths, args.regions) {
         bail!("--regions needs a number of --paths, not auto");
     }
+    if args.operating_point == BudgetSplit::Paper
+        && (args.regions.is_some() || matches!(args.paths, PathBudget::Auto(_)))
+    {
+        bail!("--operating-point paper needs a number of --paths and cuts its own regions (no --regions)");
+    }
     let plan = plan(args)?;
     let device = args.backend.device()?;
     let coarse = match &args.coarse {
@@ -450,11 +462,16 @@ fn run(args: &Args) -> anyhow::Result<usize> {
         let refine = refine.as_ref().map_or("none".to_string(), ToString::to_string);
         eprintln!("models: coarse {coarse}, refine {refine}");
     }
-    if (args.refine.is_some() || args.no_refine) && models.operating_point.refine_share == 0.0 {
+    let keeps_none = match args.operating_point {
+        BudgetSplit::Stored => (models.operating_point.refine_share == 0.0)
+            .then(|| format!("stored with {}", coarse.name().display())),
+        BudgetSplit::Point(point) => (point.refine_share == 0.0).then(|| "given".to_string()),
+        BudgetSplit::Paper => None,
+    };
+    if let Some(which) = keeps_none.filter(|_| args.refine.is_some() || args.no_refine) {
         eprintln!(
-            "warning: the operating point stored with {} keeps no share of the budget for E_r: it only \
-             fills what the coarse stage leaves unused, so --refine and --no-refine change little",
-            coarse.name().display()
+            "warning: the operating point {which} keeps no share of the budget for E_r: it only \
+             fills what the coarse stage leaves unused, so --refine and --no-refine change little"
         );
     }
     let finetune = match (args.finetune_steps, args.finetune_secs) {
@@ -468,6 +485,7 @@ fn run(args: &Args) -> anyhow::Result<usize> {
         finetune: finetune.map(|budget| FinetuneOptions { budget, ..FinetuneOptions::default() }),
         svg: SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() },
         tolerance: args.tolerance,
+        operating_point: args.operating_point,
         ..Job::default()
     };
 

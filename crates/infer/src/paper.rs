@@ -1,0 +1,145 @@
+//! The paper's inference (SuperSVG, CVPR 2024, as its reference code runs it), for a model
+//! trained with the paper preset to be set beside the paper's Table 1: budget / 64 SLIC
+//! regions, every visible E_c path of each kept in label order, then one pass of E_r over
+//! ⌈remaining / 8⌉ regions of a second SLIC, every visible path appended. No fallback paths, no
+//! trade of paths against regions, no acceptance test, the models' own colours.
+//!
+//! Two weaknesses of the reference are not copied: a background path in the colour of what the
+//! paths leave uncovered lies under everything (the reference leaves those pixels empty), and a
+//! budget too small for every visible E_c path cuts each region to its share of it (its first
+//! paths in E_c's painter's order) instead of dropping the last regions' paths wholesale.
+
+use std::sync::Arc;
+
+use burn::tensor::Device;
+use image::Rgb32FImage;
+use model::{CropBatch, canvas_cells, crop_to_image};
+use raster::{Path, Shape};
+use superpixel::{RegionCrop, Segmentation, SlicError, SlicOptions, slic};
+
+use crate::coarse::propose;
+use crate::fallback::background;
+use crate::models::Models;
+use crate::refine::RefineTally;
+use crate::scene::{Origin, Placed, Scene};
+use crate::segmentation::max_regions;
+
+/// Paths of the budget per coarse region: the reference cuts `budget / 64` superpixels (its E_c
+/// draws 128 paths a region, of which about half are visible).
+pub const PATHS_PER_REGION: usize = 64;
+
+/// The reference's SLIC for E_c's regions (compactness 50, σ 5).
+fn coarse_slic(regions: usize) -> SlicOptions {
+    SlicOptions { n_segments: regions, compactness: 50.0, sigma: 5.0, ..SlicOptions::default() }
+}
+
+/// The reference's second SLIC, for E_r's regions (compactness 20, σ 5).
+fn refine_slic(regions: usize) -> SlicOptions {
+    SlicOptions { n_segments: regions, compactness: 20.0, sigma: 5.0, ..SlicOptions::default() }
+}
+
+/// The regions E_c draws for a budget of `paths` on a `width × height` image: `paths / 64`, at
+/// least one, at most [`max_regions`].
+pub fn coarse_regions(paths: usize, width: u32, height: u32) -> usize {
+    (paths / PATHS_PER_REGION).clamp(1, max_regions(width, height))
+}
+
+/// Draws `target` with at most `paths` paths the paper's way (see the module): the scene's
+/// segmentation is E_c's SLIC; E_r's paths, drawn for the regions of a second SLIC, belong to
+/// none of its regions. With the scene comes what E_r did (every path it appends is kept, and
+/// its gain may be negative).
+pub fn draw_paper(
+    models: &Models,
+    target: &Arc<Rgb32FImage>,
+    paths: usize,
+    batch: usize,
+    device: &Device,
+) -> Result<(Scene, RefineTally), SlicError> {
+    let (width, height) = target.dimensions();
+    let segmentation = Arc::new(slic(target, &coarse_slic(coarse_regions(paths, width, height)))?);
+    let config = &models.config;
+    let crops: Vec<RegionCrop> = (0..segmentation.regions.len() as u32)
+        .map(|region| config.region_crop(&segmentation, target, region))
+        .collect();
+    let share = (paths - 1) / segmentation.regions.len();
+    let mut drawn: Vec<Placed> = Vec::new();
+    for (region, proposed) in
+        propose(&models.coarse, &crops, (width, height), batch, device).into_iter().enumerate()
+    {
+        drawn.extend(proposed.into_iter().take(share).map(|path| Placed {
+            shape: path.into(),
+            region: Some(region as u32),
+            origin: Origin::Coarse,
+        }));
+    }
+    let shapes: Vec<Shape> = drawn.iter().map(|placed| placed.shape.clone()).collect();
+    let mut scene = Scene::new(target.clone(), segmentation);
+    let under =
+        Placed { shape: background(target, &shapes).into(), region: None, origin: Origin::Background };
+    for placed in std::iter::once(under).chain(drawn) {
+        scene.push(placed);
+    }
+    let mut tally = RefineTally::default();
+    if let Some(refine) = &models.refine {
+        let remaining = paths.saturating_sub(scene.len());
+        if remaining > 0 {
+            let regions = remaining.div_ceil(config.refine_paths).min(max_regions(width, height));
+            let second = slic(target, &refine_slic(regions))?;
+            let before = scene.total_error();
+            tally.proposed = append_refinement(models, refine, &mut scene, &second, paths, batch, device);
+            tally.kept = scene.counts().refine;
+            tally.gain_db = 10.0 * (before / scene.total_error()).log10();
+        }
+    }
+    Ok((scene, tally))
+}
+
+/// E_r once over every region of `second` on `scene`'s canvas as the coarse stage left it
+/// (batched, `batch` crops a call), its visible paths appended in label order until the scene
+/// holds `paths`. Returns how many paths it proposed.
+fn append_refinement(
+    models: &Models,
+    refine: &model::RefineModel,
+    scene: &mut Scene,
+    second: &Segmentation,
+    paths: usize,
+    batch: usize,
+    device: &Device,
+) -> usize {
+    let (width, height) = scene.target().dimensions();
+    let canvas = scene.canvas_image();
+    let crops: Vec<RegionCrop> = (0..second.regions.len() as u32)
+        .map(|region| models.config.region_crop(second, scene.target(), region))
+        .collect();
+    let mut proposed = Vec::new();
+    for chunk in crops.chunks(batch.max(1)) {
+        let targets = CropBatch::new(chunk, device);
+        let cells = targets.masked_canvas(canvas_cells(&canvas, chunk, device), &models.config.input);
+        for (crop, scene) in chunk.iter().zip(refine.forward(targets.pixels, cells).to_scenes()) {
+            let visible = scene.into_iter().filter(Path::is_visible);
+            proposed
+                .extend(visible.map(|path| crop_to_image(Path { alpha: 1.0, ..path }, crop, width, height)));
+        }
+    }
+    let count = proposed.len();
+    for path in proposed {
+        if scene.len() == paths {
+            break;
+        }
+        scene.push(Placed { shape: path.into(), region: None, origin: Origin::Refine });
+    }
+    count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_budget_gives_a_region_per_64_paths_within_what_the_image_holds() {
+        assert_eq!(coarse_regions(500, 512, 512), 7);
+        assert_eq!(coarse_regions(2000, 512, 512), 31);
+        assert_eq!(coarse_regions(30, 512, 512), 1, "a small budget still draws one region");
+        assert_eq!(coarse_regions(20_000, 16, 16), 16, "one region per 16 pixels at most");
+    }
+}
