@@ -38,28 +38,11 @@ pub fn draw_refinement(
 ) -> RefineTally {
     let before = scene.total_error();
     let mut tally = RefineTally::default();
-    propose_and_keep(refine, config, scene, budget, batch, device, &mut tally);
-    if tally.kept > 0 {
-        tally.gain_db = 10.0 * (before / scene.total_error()).log10();
-    }
-    tally
-}
-
-/// The rounds of [`draw_refinement`], counting into `tally`.
-fn propose_and_keep(
-    refine: &RefineModel,
-    config: &ModelConfig,
-    scene: &mut Scene,
-    budget: usize,
-    batch: usize,
-    device: &Device,
-    tally: &mut RefineTally,
-) {
     let regions = scene.segmentation().regions.len();
     let mut exhausted = vec![false; regions];
     let mut crops: Vec<Option<RegionCrop>> = vec![None; regions];
     let (width, height) = scene.target().dimensions();
-    while scene.len() < budget {
+    'rounds: while scene.len() < budget {
         let remaining = budget - scene.len();
         let errors = scene.region_errors();
         let mut worst: Vec<u32> =
@@ -67,7 +50,7 @@ fn propose_and_keep(
         worst_first(&mut worst, &errors);
         worst.truncate(remaining.div_ceil(config.refine_paths).min(batch.max(1)));
         if worst.is_empty() {
-            return;
+            break;
         }
         for &r in &worst {
             if crops[r as usize].is_none() {
@@ -84,7 +67,7 @@ fn propose_and_keep(
             let mut kept = 0;
             for path in paths {
                 if scene.len() == budget {
-                    return;
+                    break 'rounds;
                 }
                 tally.proposed += 1;
                 let path = crop_to_image(path, crop, width, height);
@@ -98,4 +81,8 @@ fn propose_and_keep(
             exhausted[region as usize] |= kept == 0;
         }
     }
+    if tally.kept > 0 {
+        tally.gain_db = 10.0 * (before / scene.total_error()).log10();
+    }
+    tally
 }
