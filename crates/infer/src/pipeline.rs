@@ -309,6 +309,11 @@ pub fn run_with_progress(
     device: &Device,
     on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> Result<Outcome, VectorizeError> {
+    if let PathBudget::Count(paths) = job.paths
+        && !(2..=MAX_PATHS).contains(&paths)
+    {
+        return Err(VectorizeError::Budget(paths));
+    }
     if job.operating_point == BudgetSplit::Paper {
         return run_paper(models, image, job, device, on_step);
     }
@@ -320,9 +325,6 @@ pub fn run_with_progress(
     let mut warnings = Vec::new();
     let (paths, regions, tree, tolerance) = match job.paths {
         PathBudget::Count(paths) => {
-            if !(2..=MAX_PATHS).contains(&paths) {
-                return Err(VectorizeError::Budget(paths));
-            }
             if let Some(regions) = job.regions.filter(|&r| r == 0 || r >= paths) {
                 return Err(VectorizeError::Regions { regions, paths });
             }
@@ -368,9 +370,6 @@ pub fn run_with_progress(
     };
     let refine = clock.elapsed().as_secs_f64();
 
-    if matches!(job.paths, PathBudget::Count(_)) && scene.len() < paths {
-        warnings.push(Warning::FewerPaths { drawn: scene.len(), budget: paths });
-    }
     let seconds = Seconds { decode: image.seconds, superpixels, coarse, refine, ..Seconds::default() };
     let drawn = Drawn {
         auto_budget: matches!(job.paths, PathBudget::Auto(_)),
@@ -393,9 +392,6 @@ fn run_paper(
     let PathBudget::Count(paths) = job.paths else {
         return Err(VectorizeError::PaperNeedsCount);
     };
-    if !(2..=MAX_PATHS).contains(&paths) {
-        return Err(VectorizeError::Budget(paths));
-    }
     if job.regions.is_some() {
         return Err(VectorizeError::PaperNeedsCount);
     }
@@ -405,23 +401,23 @@ fn run_paper(
     // apply, so the time goes to `coarse`.
     let seconds =
         Seconds { decode: image.seconds, coarse: clock.elapsed().as_secs_f64(), ..Seconds::default() };
-    let mut warnings = Vec::new();
-    if scene.len() < paths {
-        warnings.push(Warning::FewerPaths { drawn: scene.len(), budget: paths });
-    }
     let drawn = Drawn { auto_budget: false, budget: paths, point: BudgetSplit::Paper, refinement, seconds };
-    finish(scene, image, job, drawn, warnings, on_step)
+    finish(scene, image, job, drawn, Vec::new(), on_step)
 }
 
-/// Exports `scene`, then fine-tunes it if the job asks for SuperSVG-F.
+/// Exports `scene` (with a warning when a fixed budget was not filled), then fine-tunes it if
+/// the job asks for SuperSVG-F.
 fn finish(
     scene: Scene,
     image: &Loaded,
     job: &Job,
     drawn: Drawn,
-    warnings: Vec<Warning>,
+    mut warnings: Vec<Warning>,
     on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> Result<Outcome, VectorizeError> {
+    if !drawn.auto_budget && scene.len() < drawn.budget {
+        warnings.push(Warning::FewerPaths { drawn: scene.len(), budget: drawn.budget });
+    }
     let outcome = export(scene, image, job, drawn, warnings)?;
     match &job.finetune {
         Some(options) => outcome.finetuned(image, job, options, on_step),
