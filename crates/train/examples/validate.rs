@@ -1,48 +1,77 @@
-//! Scores a coarse checkpoint on a config's validation crops, so runs trained with different
-//! `[data]` or models are compared on the same crops.
+//! Scores checkpoints on a config's validation set, so runs trained with different `[data]` or
+//! models are compared on the same images.
 //!
 //! `cargo run --release -p train --example validate -- --config configs/coarse.toml CKPT...`
-//! prints one JSON line per checkpoint: its path and the validation scores (`psnr_flat`,
-//! `psnr_drawn`, `psnr_kept`, `spill`, `visible`, `kept`).
+//! prints one JSON line per checkpoint: its path and its scores. A coarse checkpoint is scored
+//! on the validation crops (`psnr_flat`, `psnr_drawn`, `psnr_kept`, `spill`, `visible`, `kept`)
+//! and at inference (`at_inference`: each image drawn by B without E_r with
+//! `validation.coarse_share` for E_c, `psnr_b`, E_c's paths `bought`, and `psnr_regions`, the
+//! fallback alone at the same budget); a refinement checkpoint (with a refine config such as `configs/refine.toml`) the way
+//! inference uses it, on the images' fallback drawings with `validation.refine_share` of the
+//! paths (`proposed`, `kept`, `gain_db`, and `regions_db`: what the same paths add as regions).
 
 use std::path::PathBuf;
 
 use clap::Parser;
-use model::{CropBatch, load_coarse};
-use train::config::{self, CoarseConfig};
+use model::{Checkpoint, CropBatch, Stage, load_coarse, load_refine};
+use train::config::{self, CoarseConfig, RefineConfig};
+use train::inference::{CoarseCheck, RefineCheck};
 use train::objective::{CoarseObjective, Objective};
 use train::validation::Validation;
 
-/// Score coarse checkpoints on the validation set of a config.
+/// Score checkpoints on the validation set of a config.
 #[derive(Parser, Debug)]
 struct Args {
-    /// The TOML config whose [validation] and [loss] to use.
+    /// The TOML config whose [validation] (and, for E_c, [loss]) to use: a coarse config for
+    /// coarse checkpoints, a refine config for refinement ones.
     #[arg(long)]
     config: PathBuf,
-    /// Coarse checkpoints.
+    /// Checkpoints, all of one stage.
     #[arg(required = true)]
     checkpoints: Vec<PathBuf>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
-    let config: CoarseConfig = config::load(&args.config)?;
     let device = burn::tensor::Device::flex();
-    let objective = CoarseObjective::new(&config);
-    for path in &args.checkpoints {
-        let (model, model_config) = load_coarse(path, &device)?;
-        let set = Validation::build(
-            &config.validation,
-            &config.data,
-            &model_config,
-            config.loss.boundary.dilation,
-        )?
-        .ok_or("the config has no [validation] images")?;
-        let crops = CropBatch::new(set.crops(), &device);
-        let scores = set.score(&objective.draw(&model, &crops).to_scenes());
-        let mut line = serde_json::to_value(scores)?;
-        line["checkpoint"] = path.display().to_string().into();
-        println!("{line}");
+    let stage = Checkpoint::load(&args.checkpoints[0])?.stage;
+    match stage {
+        Stage::Coarse => {
+            let config: CoarseConfig = config::load(&args.config)?;
+            let objective = CoarseObjective::new(&config);
+            for path in &args.checkpoints {
+                let (model, model_config) = load_coarse(path, &device)?;
+                let set = Validation::build(
+                    &config.validation,
+                    &config.data,
+                    &model_config,
+                    config.loss.boundary.dilation,
+                )?
+                .ok_or("the config has no [validation] images")?;
+                let crops = CropBatch::new(set.crops(), &device);
+                let scores = set.score(&objective.draw(&model, &crops).to_scenes());
+                let check = CoarseCheck::build(&config.validation, config.data.compactness, &model_config)?
+                    .ok_or("the config has no [validation] images")?;
+                let mut line = serde_json::to_value(scores)?;
+                line["at_inference"] = serde_json::to_value(check.score(&model, &device))?;
+                print(path, line);
+            }
+        }
+        Stage::Refine => {
+            let config: RefineConfig = config::load(&args.config)?;
+            for path in &args.checkpoints {
+                let (model, model_config) = load_refine(path, &device)?;
+                let check = RefineCheck::build(&config.validation, config.data.compactness, &model_config)?
+                    .ok_or("the config has no [validation] images")?;
+                print(path, serde_json::to_value(check.score(&model, &device))?);
+            }
+        }
     }
     Ok(())
+}
+
+/// One line: the scores with the checkpoint's path.
+fn print(path: &std::path::Path, mut line: serde_json::Value) {
+    line["checkpoint"] = path.display().to_string().into();
+    println!("{line}");
 }

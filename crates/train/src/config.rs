@@ -106,6 +106,23 @@ pub enum RegionRecipe {
     Ward,
 }
 
+/// What each training sample carries besides its crop (`data.canvas`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SampleCanvas {
+    /// The crop alone.
+    #[default]
+    None,
+    /// The drawing inference hands E_r, made by inference's own code (`infer`'s merge tree and
+    /// fallback drawing: every region's polygon in its mean colour over the background path),
+    /// cut under the crop's box, with the image under the same box: E_r learns to add to what
+    /// it is given at inference, scored as inference's acceptance test scores it (the error in
+    /// the box). Regions are inference's regions at `compactness` (`recipe`, `oversegment` and
+    /// `min_compactness` are not read), and `pick = "worst"` ranks them by that drawing's error,
+    /// as inference gives E_r the regions drawn worst. `train-refine` only.
+    Fallback,
+}
+
 /// The `[data]` table.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -145,6 +162,8 @@ pub struct DataConfig {
     pub prefetch: usize,
     /// Use batch 0 at every step (overfitting one batch: a sanity check, and the smoke tests).
     pub fixed_batch: bool,
+    /// What each sample carries besides its crop.
+    pub canvas: SampleCanvas,
 }
 
 impl Default for DataConfig {
@@ -165,6 +184,7 @@ impl Default for DataConfig {
             workers: 1,
             prefetch: 4,
             fixed_batch: false,
+            canvas: SampleCanvas::None,
         }
     }
 }
@@ -448,6 +468,10 @@ impl Validate for CoarseConfig {
         self.validation.validate()?;
         check(self.loss.l2_levels >= 1, "loss.l2_levels must be at least 1")?;
         check(self.loss.path_efficiency >= 0.0, "loss.path_efficiency must not be negative")?;
+        check(
+            self.data.canvas == SampleCanvas::None,
+            "data.canvas is E_r's (train-refine): E_c draws each region on its own",
+        )?;
         self.loss.boundary.validate()
     }
 }
@@ -598,6 +622,12 @@ mod tests {
         assert!(err.contains("model.input_size"), "{err}");
         let err = problem::<CoarseConfig>("[data]\nrecipe = \"watershed\"\n[train]\n");
         assert!(err.contains("watershed") && err.contains("ward"), "{err}");
+        let err = problem::<CoarseConfig>("[data]\ncanvas = \"fallback\"\n[train]\n");
+        assert!(err.starts_with("data.canvas is E_r's"), "{err}");
+        let refine = parse::<RefineConfig>("[data]\ncanvas = \"fallback\"\n[train]\n").unwrap();
+        assert_eq!(refine.data.canvas, SampleCanvas::Fallback);
+        let err = problem::<RefineConfig>("[data]\n[train]\n[validation]\nrefine_share = 0.0\n");
+        assert_eq!(err, "validation.refine_share must be within (0, 1)");
     }
 
     #[test]

@@ -4,6 +4,7 @@
 pub mod cli;
 pub mod config;
 pub mod data;
+pub mod inference;
 pub mod objective;
 pub mod optimizer;
 mod preview;

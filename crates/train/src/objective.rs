@@ -11,6 +11,8 @@ use rand_chacha::ChaCha8Rng;
 use raster::{ExactBatch, PathBatch, SoftRasterOptions, paint_soft, paint_soft_with_union};
 
 use crate::config::{Canvas, CoarseConfig, CoarseLoss, Guidance, Rasterizer, RefineConfig, RefineLoss};
+use crate::data::Samples;
+use crate::inference::{AtInference, CoarseCheck, RefineCheck};
 
 /// What one step computed: the total to minimize, the terms to report, and what to preview.
 pub struct StepOutput {
@@ -57,13 +59,16 @@ pub trait Objective {
     type Model: Module;
     /// Which checkpoint stage it writes.
     const STAGE: Stage;
-    /// Losses of `model` on a batch of region crops at `step`.
-    fn step(&self, model: &Self::Model, crops: &CropBatch, step: usize) -> StepOutput;
+    /// Losses of `model` on a batch of samples at `step`.
+    fn step(&self, model: &Self::Model, samples: &Samples, step: usize) -> StepOutput;
     /// What `model` draws on `crops` at inference, where each region starts as its mean colour
     /// (paths in the crops' unit squares, with their opacity).
     fn draw(&self, model: &Self::Model, crops: &CropBatch) -> PathBatch;
     /// The soft rasterizer's options: the losses' when they read it, and the previews' soft column.
     fn raster(&self) -> &SoftRasterOptions;
+    /// `model` (on `device`) scored the way inference uses it, where the objective holds such a
+    /// check ([`CoarseCheck`], [`RefineCheck`]).
+    fn score_at_inference(&self, model: &Self::Model, device: &Device) -> Option<AtInference>;
 }
 
 /// The coarse objective: `L2 + λ_bound·L_bound + λ_PE·L_PE`, the paths drawn over the
@@ -75,6 +80,8 @@ pub struct CoarseObjective {
     pub raster: SoftRasterOptions,
     /// Which rasterizer the losses read.
     pub rasterizer: Rasterizer,
+    /// E_c at inference on the validation images, scored with the crops when there are some.
+    pub check: Option<CoarseCheck>,
 }
 
 impl CoarseObjective {
@@ -84,6 +91,7 @@ impl CoarseObjective {
             loss: config.loss.clone(),
             raster: config.raster.options(),
             rasterizer: config.raster.rasterizer,
+            check: None,
         }
     }
 }
@@ -100,7 +108,12 @@ impl Objective for CoarseObjective {
         &self.raster
     }
 
-    fn step(&self, model: &CoarseModel, crops: &CropBatch, step: usize) -> StepOutput {
+    fn score_at_inference(&self, model: &CoarseModel, device: &Device) -> Option<AtInference> {
+        self.check.as_ref().map(|check| AtInference::Coarse(check.score(model, device)))
+    }
+
+    fn step(&self, model: &CoarseModel, samples: &Samples, step: usize) -> StepOutput {
+        let crops = &samples.crops;
         let pixels = crops.pixels.clone();
         let [_, _, size, _] = pixels.dims();
         let mut laps = Laps::start();
@@ -140,6 +153,11 @@ impl Objective for CoarseObjective {
 /// region's mean colour as the canvas (inference draws every region with its mean colour before
 /// anything else), E_r reads that canvas masked by the input contract and adds S' over it, and
 /// the guidance G ties S' to S₂ = the visible paths after the split.
+///
+/// Samples that carry the drawing inference hands E_r (`data.canvas = "fallback"`) use it
+/// instead: that drawing is the canvas (S₁ is empty, S₂ every visible coarse path), and the L2
+/// is taken over the whole box against the image, which is what inference's acceptance test
+/// measures; nothing lies outside that mask, so the boundary term is 0.
 pub struct RefineObjective {
     /// The trained coarse model (frozen).
     pub teacher: CoarseModel,
@@ -153,6 +171,8 @@ pub struct RefineObjective {
     pub rasterizer: Rasterizer,
     /// Seed of the split points.
     pub seed: u64,
+    /// E_r at inference on the validation images, scored with the crops when there are some.
+    pub check: Option<RefineCheck>,
 }
 
 impl RefineObjective {
@@ -166,6 +186,7 @@ impl RefineObjective {
             raster: config.raster.options(),
             rasterizer: config.raster.rasterizer,
             seed: config.train.seed,
+            check: None,
         }
     }
 }
@@ -184,7 +205,12 @@ impl Objective for RefineObjective {
         &self.raster
     }
 
-    fn step(&self, model: &RefineModel, crops: &CropBatch, step: usize) -> StepOutput {
+    fn score_at_inference(&self, model: &RefineModel, device: &Device) -> Option<AtInference> {
+        self.check.as_ref().map(|check| AtInference::Refine(check.score(model, device)))
+    }
+
+    fn step(&self, model: &RefineModel, samples: &Samples, step: usize) -> StepOutput {
+        let crops = &samples.crops;
         let pixels = crops.pixels.clone();
         let [_, _, size, _] = pixels.dims();
         let device = pixels.device();
@@ -192,19 +218,31 @@ impl Objective for RefineObjective {
         let coarse = self.teacher.forward(pixels.clone()).detach();
         laps.lap("teacher");
         let [batch, count] = coarse.dims();
-        let split = Split::draw(&coarse, model.refine_paths(), self.seed, step);
+        let split = match samples.drawn {
+            Some(_) => Split::guide_only(&coarse),
+            None => Split::draw(&coarse, model.refine_paths(), self.seed, step),
+        };
 
         let first = coarse.with_alpha(split.first_part(&device));
-        let flat = crops.mean_colours().expand([batch, 3, size, size]);
-        let canvas = match self.rasterizer {
-            Rasterizer::Soft => paint_soft(flat, &first, &self.raster).detach(),
-            Rasterizer::Exact => ExactBatch::paint(&flat, &first).render(&device),
+        let (canvas, scored) = match &samples.drawn {
+            Some(drawn) => {
+                let whole = Tensor::ones([batch, 1, size, size], &device);
+                (drawn.canvas.clone(), CropBatch { pixels: drawn.target.clone(), masks: whole })
+            }
+            None => {
+                let flat = crops.mean_colours().expand([batch, 3, size, size]);
+                let canvas = match self.rasterizer {
+                    Rasterizer::Soft => paint_soft(flat, &first, &self.raster).detach(),
+                    Rasterizer::Exact => ExactBatch::paint(&flat, &first).render(&device),
+                };
+                (canvas, crops.clone())
+            }
         };
         laps.lap("rasterizer");
         let added = model.forward(pixels.clone(), crops.masked_canvas(canvas.clone(), &self.input));
         laps.lap("model");
         let terms = ImageTerms { l2_levels: self.loss.l2_levels, dilation: self.loss.boundary.dilation };
-        let (render, l2, bound) = terms.of(canvas, &added, crops, self.rasterizer, &self.raster, &mut laps);
+        let (render, l2, bound) = terms.of(canvas, &added, &scored, self.rasterizer, &self.raster, &mut laps);
 
         let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
         let distances = distance.between(&added, &coarse); // [B, m, n]
@@ -319,16 +357,10 @@ impl Split {
     /// Draws k for every sample, uniformly among the splits that leave at least `m` visible
     /// paths after the split (k = 0 when there are fewer than m).
     fn draw(coarse: &PathBatch, m: usize, seed: u64, step: usize) -> Self {
-        let [batch, count] = coarse.dims();
-        let alpha: Vec<f32> = coarse.alpha().try_to_vec_as().expect("visibility is readable");
+        let Self { visible, .. } = Self::guide_only(coarse);
         // A seed of its own, so splits are not correlated with the data stream of the same step.
         let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
         rng.set_stream(step as u64);
-        let visible: Vec<Vec<bool>> = alpha
-            .chunks(count.max(1))
-            .take(batch)
-            .map(|row| row.iter().map(|&a| a > raster::VISIBLE_ALPHA).collect())
-            .collect();
         let k = visible
             .iter()
             .map(|row| {
@@ -337,6 +369,19 @@ impl Split {
             })
             .collect();
         Self { visible, k }
+    }
+
+    /// The split with k = 0 for every sample: nothing to the canvas, every visible path to
+    /// the guidance (when the canvas is a drawing of its own).
+    fn guide_only(coarse: &PathBatch) -> Self {
+        let [batch, count] = coarse.dims();
+        let alpha: Vec<f32> = coarse.alpha().try_to_vec_as().expect("visibility is readable");
+        let visible = alpha
+            .chunks(count.max(1))
+            .take(batch)
+            .map(|row| row.iter().map(|&a| a > raster::VISIBLE_ALPHA).collect())
+            .collect();
+        Self { visible, k: vec![0; batch] }
     }
 
     /// `[B, n, 1]`: 1 for the first k visible paths of each sample.

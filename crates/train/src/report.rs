@@ -6,8 +6,10 @@ use std::io::Write;
 use std::path::Path;
 
 use common::progress::Bar;
+use serde::Serialize;
 use serde_json::{Map, Value};
 
+use crate::inference::AtInference;
 use crate::validation::Scores;
 
 /// One logged step.
@@ -85,13 +87,7 @@ impl Reporter {
     /// Records validation scores at `step`: a JSON line of `val_*` values in the metrics file,
     /// and a line on the display.
     pub fn validation(&mut self, step: usize, scores: &Scores) -> std::io::Result<()> {
-        let mut line = Map::new();
-        line.insert("step".into(), step.into());
-        let values = serde_json::to_value(scores).expect("scores serialize");
-        for (name, value) in values.as_object().expect("scores are a struct") {
-            line.insert(format!("val_{name}"), value.clone());
-        }
-        writeln!(self.metrics, "{}", Value::Object(line))?;
+        self.scores_line(step, "val_", scores)?;
         self.say(&format!(
             "validation at step {step}: {:.2} dB kept ({:+.2} over the flat fill, {:.1} paths kept of {:.1}), \
              {:.2} dB all drawn, spill {:.3}",
@@ -103,6 +99,46 @@ impl Reporter {
             scores.spill
         ));
         Ok(())
+    }
+
+    /// Records a network's scores at inference at `step`: a JSON line of `val_coarse_*` or
+    /// `val_refine_*` values, and a line on the display.
+    pub fn at_inference(&mut self, step: usize, scores: &AtInference) -> std::io::Result<()> {
+        match scores {
+            AtInference::Coarse(scores) => {
+                self.scores_line(step, "val_coarse_", scores)?;
+                self.say(&format!(
+                    "at inference: B {:.3} dB with {} E_c paths, the regions alone {:.3} dB ({:+.3})",
+                    scores.psnr_b,
+                    scores.bought,
+                    scores.psnr_regions,
+                    scores.margin_db()
+                ));
+            }
+            AtInference::Refine(scores) => {
+                self.scores_line(step, "val_refine_", scores)?;
+                self.say(&format!(
+                    "at inference: E_r kept {} of {} paths, +{:.3} dB, where as many more regions add +{:.3} dB ({:+.3})",
+                    scores.kept,
+                    scores.proposed,
+                    scores.gain_db,
+                    scores.regions_db,
+                    scores.margin_db()
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A metrics line of `step` and every field of `scores` (a struct) named `prefix` + field.
+    fn scores_line(&mut self, step: usize, prefix: &str, scores: &impl Serialize) -> std::io::Result<()> {
+        let mut line = Map::new();
+        line.insert("step".into(), step.into());
+        let values = serde_json::to_value(scores).expect("scores serialize");
+        for (name, value) in values.as_object().expect("scores are a struct") {
+            line.insert(format!("{prefix}{name}"), value.clone());
+        }
+        writeln!(self.metrics, "{}", Value::Object(line))
     }
 
     /// Prints a line without breaking the progress bar.

@@ -371,6 +371,9 @@ fn validate<O: Objective>(
     let paths = objective.draw(&model.valid(), &crops);
     let scores = validation.score(&paths.to_scenes());
     reporter.validation(step, &scores).map_err(io(dir))?;
+    if let Some(scores) = objective.score_at_inference(&model.valid(), &device) {
+        reporter.at_inference(step, &scores).map_err(io(dir))?;
+    }
     let [batch, _, size, _] = crops.pixels.dims();
     let flat = crops.mean_colours().expand([batch, 3, size, size]);
     let render: Vec<f32> =

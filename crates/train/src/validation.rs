@@ -36,11 +36,27 @@ pub struct ValidationConfig {
     /// Images are scaled to this long side before segmenting: inference's working size, so the
     /// crops are the regions inference cuts whatever resolution training uses.
     pub image_size: u32,
+    /// E_r runs are also scored the way inference uses E_r ([`crate::inference::RefineCheck`]):
+    /// each image drawn by its regions (at the counts of `segments`), E_r given this share of
+    /// the paths on top, against the same paths spent on more regions.
+    pub refine_share: f32,
+    /// E_c runs are also scored the way inference uses E_c ([`crate::inference::CoarseCheck`]):
+    /// each image drawn by SuperSVG-B without E_r, E_c given this share of the budget (the
+    /// stored operating point's), against the regions alone at the same budget.
+    pub coarse_share: f32,
 }
 
 impl Default for ValidationConfig {
     fn default() -> Self {
-        Self { images: None, crops: 64, segments: [250, 2000], every: 250, image_size: 512 }
+        Self {
+            images: None,
+            crops: 64,
+            segments: [250, 2000],
+            every: 250,
+            image_size: 512,
+            refine_share: 0.1,
+            coarse_share: 0.2,
+        }
     }
 }
 
@@ -56,6 +72,13 @@ impl ValidationConfig {
         }
         if self.segments[0] == 0 || self.segments[0] > self.segments[1] {
             return invalid("validation.segments must be [low, high] with 1 ≤ low ≤ high");
+        }
+        // Each leaves the regions a share of the budget, as an operating point must.
+        if !(self.refine_share > 0.0 && self.refine_share < 1.0) {
+            return invalid("validation.refine_share must be within (0, 1)");
+        }
+        if !(self.coarse_share > 0.0 && self.coarse_share < 1.0) {
+            return invalid("validation.coarse_share must be within (0, 1)");
         }
         Ok(())
     }
@@ -97,13 +120,11 @@ impl Validation {
     ) -> Result<Option<Self>, DataError> {
         let Some(folder) = &config.images else { return Ok(None) };
         let images = ImageSet::load(folder, config.image_size)?;
-        let [low, high] = config.segments;
         let per_image = config.crops.div_ceil(images.len());
         let mut crops = Vec::with_capacity(config.crops);
         for index in 0..images.len() {
             let scene: &Rgb32FImage = images.get(index);
-            let t = if images.len() > 1 { index as f64 / (images.len() - 1) as f64 } else { 0.0 };
-            let count = (low as f64 * (high as f64 / low as f64).powf(t)).round() as usize;
+            let count = region_count(config.segments, index, images.len());
             let count = count.clamp(1, (scene.width() * scene.height()) as usize);
             let options = SegmentOptions::ward(data.compactness);
             let segmentation = segment(scene, count, &options)
@@ -207,6 +228,13 @@ impl Validation {
     }
 }
 
+/// The region count of image `index` of `images`: `[low, high]` spread geometrically from the
+/// first image to the last.
+pub(crate) fn region_count([low, high]: [usize; 2], index: usize, images: usize) -> usize {
+    let t = if images > 1 { index as f64 / (images - 1) as f64 } else { 0.0 };
+    (low as f64 * (high as f64 / low as f64).powf(t)).round() as usize
+}
+
 /// Sum of squared differences inside the crop's mask between the canvas and the crop.
 fn masked_error(crop: &RegionCrop, canvas: &Pixmap) -> f64 {
     let cells = crop.size * crop.size;
@@ -260,6 +288,8 @@ mod tests {
             segments: [2, 2],
             every: 10,
             image_size: 64,
+            refine_share: 0.1,
+            coarse_share: 0.2,
         };
         let data = DataConfig { image_size: 64, ..Default::default() };
         let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };

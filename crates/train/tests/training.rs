@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use burn::tensor::Device;
 use model::{CoarseModel, RefineModel, load_coarse};
 use train::config::{self, CoarseConfig, Guidance, Rasterizer, RefineConfig};
+use train::inference::RefineCheck;
 use train::objective::{CoarseObjective, RefineObjective};
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
 use train::validation::{Validation, ValidationConfig};
@@ -158,6 +159,8 @@ fn validation_scores_and_previews_are_written() {
         segments: [8, 16],
         every: 5,
         image_size: 64,
+        refine_share: 0.1,
+        coarse_share: 0.2,
     };
     let device = Device::flex().autodiff();
     let objective = CoarseObjective::new(&config);
@@ -190,6 +193,65 @@ fn validation_scores_and_previews_are_written() {
     assert!(dir.join("preview-000005.png").exists() && dir.join("preview-000010.png").exists());
     // Training lines are still there for the loss curve.
     assert_eq!(metric(&dir, "loss").len(), 2);
+    for dir in [held_out, dir] {
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}
+
+/// E_r on the drawing inference hands it (`data.canvas = "fallback"`): its loss is the box's
+/// whole error (no boundary term, nothing lies outside), it falls, and the run is scored the
+/// way inference uses E_r, against as many more regions.
+#[test]
+fn refinement_on_the_fallback_drawing_trains_and_is_scored_at_inference() {
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let held_out = scratch("held-out-refine");
+    std::fs::create_dir_all(&held_out).unwrap();
+    image::RgbImage::from_fn(64, 48, |x, y| {
+        image::Rgb([(x * 4) as u8, (y * 5) as u8, if (x / 8 + y / 8) % 2 == 0 { 200 } else { 30 }])
+    })
+    .save(held_out.join("photo.png"))
+    .unwrap();
+    let mut config: RefineConfig = config::load(&workspace().join("configs/smoke-refine.toml")).unwrap();
+    config.data.fixed_batch = true;
+    config.data.canvas = train::config::SampleCanvas::Fallback;
+    config.data.pick = train::config::RegionPick::Worst;
+    config.train.steps = 20;
+    config.raster.rasterizer = Rasterizer::Exact;
+    config.validation = ValidationConfig {
+        images: Some(held_out.clone()),
+        crops: 4,
+        segments: [6, 12],
+        every: 10,
+        image_size: 64,
+        refine_share: 0.5,
+        coarse_share: 0.2,
+    };
+    let device = Device::flex().autodiff();
+    let teacher = CoarseModel::new(&smoke_coarse().model.0, &device);
+    let model_config = smoke_coarse().model.0;
+    let dir = scratch("refine-fallback");
+    let path = checkpoint_path::<RefineObjective>(&dir);
+    let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
+    let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
+    let mut objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
+    objective.check = RefineCheck::build(&config.validation, config.data.compactness, &model_config).unwrap();
+    assert!(objective.check.is_some());
+    let set = Validation::build(&config.validation, &config.data, &model_config, 2).unwrap();
+    let run = Run { dir: dir.clone(), device, validation: set.map(|s| (s, 10)), overwrite: false };
+    let json = serde_json::to_value(&config).unwrap();
+    train(&objective, start, &config.train, &config.data, json, &run).unwrap();
+
+    assert!(metric(&dir, "bound").iter().all(|&(_, b)| b == 0.0), "the whole box is the region");
+    let l2 = metric(&dir, "l2");
+    assert!(l2.last().unwrap().1 < l2.first().unwrap().1, "{l2:?}");
+    let (proposed, kept) = (metric(&dir, "val_refine_proposed"), metric(&dir, "val_refine_kept"));
+    assert_eq!(proposed.iter().map(|(step, _)| *step).collect::<Vec<_>>(), [10, 20]);
+    for ((_, proposed), (_, kept)) in proposed.iter().zip(&kept) {
+        assert!(kept <= proposed && *proposed > 0.0, "{kept} of {proposed}");
+    }
+    // Kept paths only lower the error; more regions lower it too, on a picture of ramps.
+    assert!(metric(&dir, "val_refine_gain_db").iter().all(|&(_, db)| db >= 0.0));
+    assert!(metric(&dir, "val_refine_regions_db").iter().all(|&(_, db)| db > 0.0));
     for dir in [held_out, dir] {
         std::fs::remove_dir_all(dir).unwrap();
     }

@@ -10,6 +10,7 @@ use clap::Parser;
 use model::{CoarseModel, load_coarse};
 use train::cli::{CommonArgs, finish};
 use train::config::{self, CoarseConfig};
+use train::inference::CoarseCheck;
 use train::objective::CoarseObjective;
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
 use train::validation::Validation;
@@ -43,7 +44,7 @@ fn run(
     }
     let dir = args.out.unwrap_or_else(|| "runs/coarse".into());
     let device = args.backend.autodiff_device()?;
-    let objective = CoarseObjective::new(&config);
+    let mut objective = CoarseObjective::new(&config);
     let init = match init {
         Some(path) => {
             let (model, model_config) = load_coarse(&path, &device)?;
@@ -66,6 +67,7 @@ fn run(
         &path,
         (&device, config.train.seed),
     )?;
+    objective.check = CoarseCheck::build(&config.validation, config.data.compactness, &start.model_config)?;
     let config_json = serde_json::to_value(&config)?;
     let validation = Validation::scheduled(
         &config.validation,

@@ -8,5 +8,5 @@ mod synthetic;
 
 pub use images::ImageSet;
 pub use loader::Loader;
-pub use source::{Batch, DataError, DataSource};
+pub use source::{Batch, DataError, DataSource, DrawnBox, DrawnBoxes, Samples};
 pub use synthetic::synthetic_scene;

@@ -1,18 +1,21 @@
 //! What a training batch is, and how batch `i` is made from the seed alone.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
-use burn::tensor::Device;
+use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
+use infer::scene::Scene;
+use infer::segmentation::{Segmented, hierarchy, max_regions};
 use model::{CropBatch, MIN_REGION_PIXELS, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use superpixel::{RegionCrop, Segmentation, SlicError, segment, worst_first};
+use superpixel::{RegionCrop, Segmentation, SlicError, resample_area, segment, worst_first};
 
 use super::images::{EXTENSIONS, ImageSet};
 use super::synthetic::synthetic_scene;
-use crate::config::{DataConfig, RegionPick};
+use crate::config::{DataConfig, RegionPick, SampleCanvas};
 
 /// A data problem: a folder that cannot be used (missing, no images…), or a batch that could not
 /// be made.
@@ -82,6 +85,17 @@ pub enum DataError {
 /// busy for ever.
 const BARREN_SCENES: usize = 256;
 
+/// The drawing under a sample's box and the image under it (`data.canvas = "fallback"`), both
+/// `[3, S, S]` planar, area-resampled onto the crop's cells like the canvas inference cuts
+/// for E_r ([`model::canvas_cells`]), unmasked: what inference's acceptance test compares.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DrawnBox {
+    /// What is drawn so far under the box.
+    pub canvas: Vec<f32>,
+    /// The image under the box.
+    pub target: Vec<f32>,
+}
+
 /// Region crops of one step, on the CPU.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Batch {
@@ -89,12 +103,42 @@ pub struct Batch {
     pub index: u64,
     /// The samples, cut by the model's input contract ([`ModelConfig::region_crop`]).
     pub crops: Vec<RegionCrop>,
+    /// One per crop with `data.canvas = "fallback"`; empty otherwise.
+    pub drawn: Vec<DrawnBox>,
+}
+
+/// A batch as tensors: what an objective's step reads.
+#[derive(Clone, Debug)]
+pub struct Samples {
+    /// The crops and masks.
+    pub crops: CropBatch,
+    /// With `data.canvas = "fallback"`: `[B, 3, S, S]` each, what is drawn under each crop's
+    /// box and the image under it.
+    pub drawn: Option<DrawnBoxes>,
+}
+
+/// [`DrawnBox`]es stacked as tensors.
+#[derive(Clone, Debug)]
+pub struct DrawnBoxes {
+    /// `[B, 3, S, S]`: the drawing under each box.
+    pub canvas: Tensor<4>,
+    /// `[B, 3, S, S]`: the image under each box.
+    pub target: Tensor<4>,
 }
 
 impl Batch {
-    /// The crops and masks as tensors on `device`.
-    pub fn tensors(&self, device: &Device) -> CropBatch {
-        CropBatch::new(&self.crops, device)
+    /// The batch as tensors on `device`.
+    pub fn tensors(&self, device: &Device) -> Samples {
+        let crops = CropBatch::new(&self.crops, device);
+        let drawn = (!self.drawn.is_empty()).then(|| {
+            let [count, _, size, _] = crops.pixels.dims();
+            let stack = |part: fn(&DrawnBox) -> &[f32]| {
+                let values: Vec<f32> = self.drawn.iter().flat_map(|d| part(d).iter().copied()).collect();
+                Tensor::from_data(TensorData::new(values, [count, 3, size, size]), device)
+            };
+            DrawnBoxes { canvas: stack(|d| &d.canvas), target: stack(|d| &d.target) }
+        });
+        Samples { crops, drawn }
     }
 }
 
@@ -145,7 +189,7 @@ impl DataSource {
     pub fn batch(&self, index: u64) -> Result<Batch, DataError> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(if self.config.fixed_batch { 0 } else { index });
-        let mut crops = Vec::with_capacity(self.batch_size);
+        let (mut crops, mut drawn) = (Vec::with_capacity(self.batch_size), Vec::new());
         let mut barren = 0;
         while crops.len() < self.batch_size {
             if barren == BARREN_SCENES {
@@ -165,18 +209,66 @@ impl DataSource {
             let share = (scene.width() * scene.height()) as f64 / (whole.width() * whole.height()) as f64;
             let count =
                 ((count as f64 * share).round() as usize).clamp(1, (scene.width() * scene.height()) as usize);
-            let segmentation = segment(&scene, count, &self.config.segment_options())
-                .map_err(|source| DataError::Segment { index, source })?;
-            let regions = pick_regions(&scene, &segmentation, self.config.pick, &mut rng);
-            barren = if regions.is_empty() { barren + 1 } else { 0 };
-            for &region in regions.iter().take(self.config.regions_per_scene) {
-                if crops.len() == self.batch_size {
-                    break;
+            let room = self.batch_size - crops.len();
+            let taken = match self.config.canvas {
+                SampleCanvas::None => {
+                    let segmentation = segment(&scene, count, &self.config.segment_options())
+                        .map_err(|source| DataError::Segment { index, source })?;
+                    let regions = pick_regions(&scene, &segmentation, self.config.pick, &mut rng);
+                    let take = regions.len().min(self.config.regions_per_scene).min(room);
+                    crops.extend(regions[..take].iter().map(|&r| self.sample(&scene, &segmentation, r)));
+                    take
                 }
-                crops.push(self.sample(&scene, &segmentation, region));
-            }
+                SampleCanvas::Fallback => {
+                    let samples = self
+                        .drawn_samples(scene, count, room, &mut rng)
+                        .map_err(|source| DataError::Segment { index, source })?;
+                    let take = samples.len();
+                    for (crop, box_) in samples {
+                        crops.push(crop);
+                        drawn.push(box_);
+                    }
+                    take
+                }
+            };
+            barren = if taken == 0 { barren + 1 } else { 0 };
         }
-        Ok(Batch { index, crops })
+        Ok(Batch { index, crops, drawn })
+    }
+
+    /// Up to `room` samples (at most `regions_per_scene`) of `scene` cut into `count` of
+    /// inference's regions, each with the fallback drawing inference makes of them under its box
+    /// ([`SampleCanvas::Fallback`]), in the order `pick` takes them.
+    fn drawn_samples(
+        &self,
+        scene: Rgb32FImage,
+        count: usize,
+        room: usize,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Vec<(RegionCrop, DrawnBox)>, SlicError> {
+        let count = count.min(max_regions(scene.width(), scene.height()));
+        let target = Arc::new(scene);
+        let tree = hierarchy(&target, count, self.config.compactness)?;
+        let Segmented { segmentation, fallback, .. } = Segmented::new(&target, tree, count, None);
+        let drawing = Scene::drawn(target.clone(), segmentation.clone(), fallback.placed(), fallback.canvas);
+        let mut regions = usable_regions(&segmentation);
+        match self.config.pick {
+            RegionPick::Random => regions.shuffle(rng),
+            RegionPick::Worst => worst_first(&mut regions, &drawing.region_errors()),
+        }
+        let canvas = drawing.canvas_image();
+        let take = regions.len().min(self.config.regions_per_scene).min(room);
+        Ok(regions[..take]
+            .iter()
+            .map(|&region| {
+                let crop = self.sample(&target, &segmentation, region);
+                let drawn = DrawnBox {
+                    canvas: resample_area(&canvas, &crop.transform, crop.size),
+                    target: resample_area(&target, &crop.transform, crop.size),
+                };
+                (crop, drawn)
+            })
+            .collect())
     }
 
     /// A scene to take regions from: generated or from the folder, by `synthetic_weight`.
@@ -200,14 +292,19 @@ fn pick_regions(
     pick: RegionPick,
     rng: &mut ChaCha8Rng,
 ) -> Vec<u32> {
-    let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
-        .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
-        .collect();
+    let mut regions = usable_regions(segmentation);
     match pick {
         RegionPick::Random => regions.shuffle(rng),
         RegionPick::Worst => worst_first(&mut regions, &segmentation.flat_errors(scene)),
     }
     regions
+}
+
+/// The regions of `segmentation` large enough to be a sample ([`MIN_REGION_PIXELS`]).
+fn usable_regions(segmentation: &Segmentation) -> Vec<u32> {
+    (0..segmentation.regions.len() as u32)
+        .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
+        .collect()
 }
 
 /// A random `side × side` window of `scene` (the whole scene if it is not larger; 0 means the
@@ -274,6 +371,81 @@ mod tests {
         let source = DataSource::new(&config, &model, 2, 0).unwrap();
         let err = source.batch(0).err().expect("no batch");
         assert!(err.to_string().contains("gave no region of 16 pixels"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn fallback_samples_carry_inferences_drawing_under_their_box() {
+        let dir = std::env::temp_dir().join(format!("supersvg-drawn-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        // Four flat quadrants, then a ramp: the regions' polygons in their mean colours draw the
+        // first exactly and the second only roughly.
+        image::RgbImage::from_fn(64, 64, |x, y| {
+            image::Rgb(match (x < 32, y < 32) {
+                (true, true) => [230, 40, 40],
+                (false, true) => [20, 40, 200],
+                (true, false) => [250, 220, 10],
+                (false, false) => [10, 120, 30],
+            })
+        })
+        .save(dir.join("a.png"))
+        .unwrap();
+        let model = ModelConfig { input_size: 16, ..ModelConfig::preset(model::Preset::Cpu) };
+        let config = DataConfig {
+            images: Some(dir.clone()),
+            synthetic: false,
+            image_size: 64,
+            segments: [4, 4],
+            canvas: SampleCanvas::Fallback,
+            pick: RegionPick::Worst,
+            ..Default::default()
+        };
+        let batch = DataSource::new(&config, &model, 3, 0).unwrap().batch(0).unwrap();
+        assert_eq!((batch.crops.len(), batch.drawn.len()), (3, 3));
+        for (crop, drawn) in batch.crops.iter().zip(&batch.drawn) {
+            let cells = crop.size * crop.size;
+            for (index, (&canvas, &target)) in drawn.canvas.iter().zip(&drawn.target).enumerate() {
+                assert!((canvas - target).abs() < 1e-2, "cell {index}: drew {canvas}, image {target}");
+                if crop.mask[index % cells] == 1.0 {
+                    assert!((crop.pixels[index] - target).abs() < 1e-5, "the box holds the crop");
+                }
+            }
+        }
+        let samples = batch.tensors(&Device::flex());
+        let drawn = samples.drawn.expect("the boxes come as tensors");
+        assert_eq!(drawn.canvas.dims(), [3, 3, 16, 16]);
+
+        image::RgbImage::from_fn(64, 64, |x, y| image::Rgb([(x * 4) as u8, (y * 4) as u8, 90]))
+            .save(dir.join("a.png"))
+            .unwrap();
+        let batch = DataSource::new(&config, &model, 3, 0).unwrap().batch(0).unwrap();
+        for (crop, drawn) in batch.crops.iter().zip(&batch.drawn) {
+            let error: f32 = drawn.canvas.iter().zip(&drawn.target).map(|(a, b)| (a - b).powi(2)).sum();
+            assert!(error > 0.05, "a flat region cannot draw a ramp exactly ({error})");
+            // Inside the region the drawing is its flat polygon: one colour on the cells whose
+            // pixels are all the region's (the mask's cells away from its edge), but where a
+            // neighbour's anti-aliased edge reaches in; the image's ramp differs on every cell.
+            let cells = crop.size * crop.size;
+            let inner: Vec<usize> = (0..cells)
+                .filter(|&i| {
+                    let (x, y) = (i % crop.size, i / crop.size);
+                    (x > 0 && y > 0 && x + 1 < crop.size && y + 1 < crop.size)
+                        && [i - 1, i + 1, i - crop.size, i + crop.size, i]
+                            .iter()
+                            .all(|&j| crop.mask[j] == 1.0)
+                })
+                .collect();
+            let red: Vec<f32> = inner.iter().map(|&i| drawn.canvas[i]).collect();
+            let flat = red.iter().filter(|&&v| (v - red[red.len() / 2]).abs() < 1e-2).count();
+            assert!(inner.len() > 20 && flat * 10 >= 9 * inner.len(), "{red:?}");
+            let image: Vec<f32> = inner.iter().map(|&i| drawn.target[i]).collect();
+            let same = image.iter().filter(|&&v| (v - image[image.len() / 2]).abs() < 1e-2).count();
+            assert!(same * 2 < inner.len(), "the image is a ramp under the same cells: {image:?}");
+        }
+        let coarse =
+            DataSource::new(&DataConfig { canvas: SampleCanvas::None, ..config }, &model, 3, 0).unwrap();
+        assert!(coarse.batch(0).unwrap().drawn.is_empty(), "only with data.canvas");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
