@@ -20,7 +20,7 @@ use infer::models::Identity;
 use infer::refine::draw_refinement;
 use infer::scene::Scene;
 use infer::segmentation::{Segmented, hierarchy, max_regions};
-use infer::{BudgetSplit, Job, Models, PathBudget};
+use infer::{BudgetSplit, Job, MAX_PATHS, Models, PathBudget};
 use model::{CoarseModel, ModelConfig, OperatingPoint, RefineModel};
 use serde::Serialize;
 
@@ -31,8 +31,7 @@ use crate::validation::{ValidationConfig, region_count};
 const BATCH: usize = 32;
 
 /// What a network did at inference on the checks' images.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-#[serde(untagged)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AtInference {
     /// E_c's check.
     Coarse(CoarseScores),
@@ -163,7 +162,9 @@ impl CoarseCheck {
         let mut images = Vec::with_capacity(held.len());
         for (image, count) in held {
             let most = max_regions(image.width(), image.height());
-            let budget = count.clamp(2, most + 1);
+            // What `infer::run` accepts: a region and the background, at most a path per region
+            // the image holds room for, at most MAX_PATHS.
+            let budget = count.clamp(2, (most + 1).min(MAX_PATHS));
             let tree = hierarchy(&image, budget - 1, compactness)
                 .map_err(|source| DataError::ValidationSegment { path: folder.clone(), source })?;
             let regions = Segmented::new(&image, tree, budget - 1, None);
@@ -192,6 +193,8 @@ impl CoarseCheck {
                 batch: BATCH,
                 ..Job::default()
             };
+            // The budget was clamped into range and the compactness validated when the check
+            // was built: no error is left for `run` to report.
             let outcome = infer::run(&models, image, &job, device).expect("a budget within range");
             scores.bought += outcome.report.paths_by_stage.coarse;
             scores.psnr_b += outcome.report.psnr;

@@ -368,10 +368,11 @@ fn validate<O: Objective>(
     };
     let device = device.clone().inner();
     let crops = CropBatch::new(validation.crops(), &device);
-    let paths = objective.draw(&model.valid(), &crops);
+    let model = model.valid();
+    let paths = objective.draw(&model, &crops);
     let scores = validation.score(&paths.to_scenes());
     reporter.validation(step, &scores).map_err(io(dir))?;
-    if let Some(scores) = objective.score_at_inference(&model.valid(), &device) {
+    if let Some(scores) = objective.score_at_inference(&model, &device) {
         reporter.at_inference(step, &scores).map_err(io(dir))?;
     }
     let [batch, _, size, _] = crops.pixels.dims();

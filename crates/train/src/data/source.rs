@@ -214,7 +214,8 @@ impl DataSource {
                 SampleCanvas::None => {
                     let segmentation = segment(&scene, count, &self.config.segment_options())
                         .map_err(|source| DataError::Segment { index, source })?;
-                    let regions = pick_regions(&scene, &segmentation, self.config.pick, &mut rng);
+                    let errors = || segmentation.flat_errors(&scene);
+                    let regions = pick_regions(&segmentation, self.config.pick, errors, &mut rng);
                     let take = regions.len().min(self.config.regions_per_scene).min(room);
                     crops.extend(regions[..take].iter().map(|&r| self.sample(&scene, &segmentation, r)));
                     take
@@ -251,11 +252,7 @@ impl DataSource {
         let tree = hierarchy(&target, count, self.config.compactness)?;
         let Segmented { segmentation, fallback, .. } = Segmented::new(&target, tree, count, None);
         let drawing = Scene::drawn(target.clone(), segmentation.clone(), fallback.placed(), fallback.canvas);
-        let mut regions = usable_regions(&segmentation);
-        match self.config.pick {
-            RegionPick::Random => regions.shuffle(rng),
-            RegionPick::Worst => worst_first(&mut regions, &drawing.region_errors()),
-        }
+        let regions = pick_regions(&segmentation, self.config.pick, || drawing.region_errors(), rng);
         let canvas = drawing.canvas_image();
         let take = regions.len().min(self.config.regions_per_scene).min(room);
         Ok(regions[..take]
@@ -285,26 +282,22 @@ impl DataSource {
     }
 }
 
-/// The regions of `segmentation` (of `scene`) worth a sample, in the order `pick` takes them.
+/// The regions of `segmentation` large enough to be a sample ([`MIN_REGION_PIXELS`]), in the
+/// order `pick` takes them: `Worst` ranks them by `errors` (one per region, largest first).
 fn pick_regions(
-    scene: &Rgb32FImage,
     segmentation: &Segmentation,
     pick: RegionPick,
+    errors: impl FnOnce() -> Vec<f64>,
     rng: &mut ChaCha8Rng,
 ) -> Vec<u32> {
-    let mut regions = usable_regions(segmentation);
+    let mut regions: Vec<u32> = (0..segmentation.regions.len() as u32)
+        .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
+        .collect();
     match pick {
         RegionPick::Random => regions.shuffle(rng),
-        RegionPick::Worst => worst_first(&mut regions, &segmentation.flat_errors(scene)),
+        RegionPick::Worst => worst_first(&mut regions, &errors()),
     }
     regions
-}
-
-/// The regions of `segmentation` large enough to be a sample ([`MIN_REGION_PIXELS`]).
-fn usable_regions(segmentation: &Segmentation) -> Vec<u32> {
-    (0..segmentation.regions.len() as u32)
-        .filter(|&r| segmentation.regions[r as usize].pixels >= MIN_REGION_PIXELS)
-        .collect()
 }
 
 /// A random `side × side` window of `scene` (the whole scene if it is not larger; 0 means the
@@ -340,10 +333,10 @@ mod tests {
         let scene = synthetic_scene(&mut rng, 96);
         let segmentation = segment(&scene, 24, &DataConfig::default().segment_options()).unwrap();
         let errors = segmentation.flat_errors(&scene);
-        let worst = pick_regions(&scene, &segmentation, RegionPick::Worst, &mut rng);
+        let worst = pick_regions(&segmentation, RegionPick::Worst, || errors.clone(), &mut rng);
         assert!(worst.len() > 4);
         assert!(worst.windows(2).all(|w| errors[w[0] as usize] >= errors[w[1] as usize]));
-        let mut random = pick_regions(&scene, &segmentation, RegionPick::Random, &mut rng);
+        let mut random = pick_regions(&segmentation, RegionPick::Random, || errors.clone(), &mut rng);
         assert_ne!(random, worst, "a shuffle of {} regions came out sorted", worst.len());
         random.sort();
         let mut same = worst.clone();
