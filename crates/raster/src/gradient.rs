@@ -77,6 +77,66 @@ impl Window {
         self.backward(paths, RGB, &Seed::L2)
     }
 
+    /// `paths` with each colour replaced by the one that fits the target best (least squares)
+    /// over what lies below the path: the canvas and the paths before it, in their fitted
+    /// colours. The error of each pixel is weighed by `weights` (`[height][width]`; `None`: 1
+    /// everywhere). A path that covers no weighted pixel keeps its colour.
+    ///
+    /// This is what inference does to every path E_r proposes (infer's `Scene::fit_colour`, one
+    /// path at a time over the drawing so far), so a loss of the fitted paths scores shapes and
+    /// opacities alone; with the colours at their optimum, its gradient by the other parameters
+    /// is the fitted loss's (colours held fixed).
+    ///
+    /// # Panics
+    /// If `weights` does not hold one value per pixel.
+    pub fn fit_colours(&self, paths: &[Path], weights: Option<&[f32]>) -> Vec<Path> {
+        let (width, pixels) = (self.width as usize, self.width as usize * self.height as usize);
+        assert!(weights.is_none_or(|w| w.len() == pixels), "one weight per pixel");
+        let mut below = self.canvas.clone();
+        paths
+            .iter()
+            .zip(self.coverages(paths))
+            .map(|(path, coverage)| {
+                let Some(Coverage { bbox, values: covers }) = coverage else {
+                    return *path;
+                };
+                let [x0, y0, x1, y1] = corners(&bbox);
+                let alpha = f64::from(path.alpha.clamp(0.0, 1.0));
+                // Each pixel of the box: its index in a plane, and the path's share of it.
+                let cells = (y0..y1)
+                    .flat_map(|y| (x0..x1).map(move |x| (y, x)))
+                    .map(|(y, x)| (y * width + x, covers[(y - y0) * (x1 - x0) + x - x0]));
+                // Painted: a·colour + (1 − a)·below, a = α·coverage; fit a·colour to target − (1 − a)·below.
+                let (mut numerator, mut denominator) = ([0.0f64; 3], 0.0f64);
+                for (index, cover) in cells.clone() {
+                    let (a, weight) =
+                        (alpha * f64::from(cover), weights.map_or(1.0, |w| f64::from(w[index])));
+                    if a == 0.0 || weight == 0.0 {
+                        continue;
+                    }
+                    for (c, n) in numerator.iter_mut().enumerate() {
+                        let i = c * pixels + index;
+                        *n += weight * a * (f64::from(self.target[i]) - (1.0 - a) * f64::from(below[i]));
+                    }
+                    denominator += weight * a * a;
+                }
+                let fitted = if denominator > 0.0 {
+                    Path { color: numerator.map(|n| (n / denominator).clamp(0.0, 1.0) as f32), ..*path }
+                } else {
+                    *path
+                };
+                for (index, cover) in cells {
+                    let a = alpha as f32 * cover;
+                    for (c, color) in fitted.color.iter().enumerate() {
+                        let value = &mut below[c * pixels + index];
+                        *value += a * (color - *value);
+                    }
+                }
+                fitted
+            })
+            .collect()
+    }
+
     /// The gradient by each path's parameters (as [`Self::l2_gradient`]'s) of any loss of the
     /// render and of the union, given the loss's derivative by each value of
     /// [`Self::render_with_union`]'s two buffers (`None`: the loss does not read it). The
@@ -466,6 +526,46 @@ mod tests {
         assert!(Window::new(2, 2, vec![0.0; 12], vec![0.0; 12]).is_some());
         assert!(Window::new(2, 2, vec![0.0; 11], vec![0.0; 12]).is_none());
         assert!(Window::new(0, 2, vec![], vec![]).is_none());
+    }
+
+    /// Fitting recovers the colours a target was painted with (paths apart, so that each fit
+    /// sees only its own path), leaves a path with no weighted pixel as it was, reads only the
+    /// weighted pixels, and gives one path alone a colour no worse than a random one.
+    #[test]
+    fn fitted_colours_are_the_least_squares_ones() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        let grey = vec![0.5; 3 * (WIDTH * HEIGHT) as usize];
+        let mut painted =
+            vec![random_blob(&mut rng, [0.25, 0.5], 0.15), random_blob(&mut rng, [0.75, 0.5], 0.15)];
+        painted[0].color = [0.9, 0.1, 0.3];
+        painted[1].color = [0.2, 0.7, 0.0];
+        painted[1].alpha = 0.6;
+        let target = Window::new(WIDTH, HEIGHT, grey.clone(), grey.clone()).unwrap().render(&painted);
+        let apart = Window::new(WIDTH, HEIGHT, grey, target).unwrap();
+        let given: Vec<Path> = painted.iter().map(|path| Path { color: [0.5, 0.5, 0.0], ..*path }).collect();
+        let fitted = apart.fit_colours(&given, None);
+        for (fit, truth) in fitted.iter().zip(&painted) {
+            for (f, t) in fit.color.iter().zip(truth.color) {
+                assert!((f - t).abs() < 1e-3, "{:?} vs {:?}", fit.color, truth.color);
+            }
+            assert_eq!((fit.points, fit.alpha), (truth.points, truth.alpha));
+        }
+        assert!(apart.l2(&fitted) < 1e-6 && apart.l2(&given) > 1e-3);
+
+        // Weighed only on the left half: the right path covers nothing that counts.
+        let left: Vec<f32> =
+            (0..HEIGHT).flat_map(|_| (0..WIDTH).map(|x| if x < WIDTH / 2 { 1.0 } else { 0.0 })).collect();
+        let fitted = apart.fit_colours(&given, Some(&left));
+        assert!((fitted[0].color[0] - 0.9).abs() < 1e-3);
+        assert_eq!(fitted[1].color, given[1].color);
+
+        // One path over a random drawing: its fitted colour is the best there is, so never
+        // worse than a random one.
+        for _ in 0..4 {
+            let random = window(&mut rng);
+            let scene = random_scene(&mut rng, 1);
+            assert!(random.l2(&random.fit_colours(&scene, None)) <= random.l2(&scene) + 1e-9);
+        }
     }
 
     /// Central differences of the loss, one parameter at a time, against the gradient: colours

@@ -320,6 +320,20 @@ pub enum Guidance {
     None,
 }
 
+/// The colours E_r's paths are scored in (`loss.colours`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PathColours {
+    /// The colours E_r predicts.
+    #[default]
+    Predicted,
+    /// Each path in the colour that fits the target best over what lies below it
+    /// (`raster::Window::fit_colours`). Inference refits every colour E_r proposes
+    /// (`infer::Scene::fit_colour`) and keeps only the shape and opacity, so this loss scores
+    /// those alone; E_r's own colours then learn from the guidance only.
+    Fitted,
+}
+
 /// The `[loss]` table of the refinement stage.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -340,6 +354,8 @@ pub struct RefineLoss {
     pub distance_color: f32,
     /// λ_bound and its schedule.
     pub boundary: BoundaryWeight,
+    /// The colours the image terms score E_r's paths in.
+    pub colours: PathColours,
 }
 
 impl Default for RefineLoss {
@@ -353,6 +369,7 @@ impl Default for RefineLoss {
             distance_coords: 1.0,
             distance_color: 1.0,
             boundary: BoundaryWeight::default(),
+            colours: PathColours::Predicted,
         }
     }
 }

@@ -8,9 +8,12 @@ use dpw::{PathDistance, boundary_loss_of_union, dpw, multiscale_masked_l2, path_
 use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use raster::{ExactBatch, PathBatch, SoftRasterOptions, paint_soft, paint_soft_with_union};
+use raster::{ExactBatch, PathBatch, SoftRasterOptions, Window, paint_soft, paint_soft_with_union};
+use rayon::prelude::*;
 
-use crate::config::{Canvas, CoarseConfig, CoarseLoss, Guidance, Rasterizer, RefineConfig, RefineLoss};
+use crate::config::{
+    Canvas, CoarseConfig, CoarseLoss, Guidance, PathColours, Rasterizer, RefineConfig, RefineLoss,
+};
 use crate::data::Samples;
 use crate::inference::{AtInference, CoarseCheck, RefineCheck};
 
@@ -158,6 +161,9 @@ impl Objective for CoarseObjective {
 /// instead: that drawing is the canvas (S₁ is empty, S₂ every visible coarse path), and the L2
 /// is taken over the whole box against the image, which is what inference's acceptance test
 /// measures; nothing lies outside that mask, so the boundary term is 0.
+///
+/// With `loss.colours = "fitted"` the image terms score S' in the colours inference would give
+/// it (each path's least-squares colour over what lies below it), not in E_r's own.
 pub struct RefineObjective {
     /// The trained coarse model (frozen).
     pub teacher: CoarseModel,
@@ -241,8 +247,17 @@ impl Objective for RefineObjective {
         laps.lap("rasterizer");
         let added = model.forward(pixels.clone(), crops.masked_canvas(canvas.clone(), &self.input));
         laps.lap("model");
+        let scored_paths = match self.loss.colours {
+            PathColours::Predicted => added.clone(),
+            PathColours::Fitted => {
+                let fitted = with_fitted_colours(&canvas, &added, &scored);
+                laps.lap("rasterizer");
+                fitted
+            }
+        };
         let terms = ImageTerms { l2_levels: self.loss.l2_levels, dilation: self.loss.boundary.dilation };
-        let (render, l2, bound) = terms.of(canvas, &added, &scored, self.rasterizer, &self.raster, &mut laps);
+        let (render, l2, bound) =
+            terms.of(canvas, &scored_paths, &scored, self.rasterizer, &self.raster, &mut laps);
 
         let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
         let distances = distance.between(&added, &coarse); // [B, m, n]
@@ -270,13 +285,43 @@ impl Objective for RefineObjective {
             terms: vec![("l2", l2), ("guidance", guidance), ("bound", bound)],
             weights: vec![("lambda_guidance", guidance_weight), ("lambda_bound", bound_weight)],
             render,
-            paths: first.then(&added),
+            paths: first.then(&scored_paths),
             phases: {
                 laps.lap("losses");
                 laps.phases
             },
         }
     }
+}
+
+/// `paths` (`[B, P]`) in the colours that fit `crops` best over `canvas` (`[B, 3, S, S]`), each
+/// sample's masked pixels weighed alone ([`Window::fit_colours`]); the colours are constants, so
+/// the image terms of the result differentiate to the shapes and opacities alone.
+fn with_fitted_colours(canvas: &Tensor<4>, paths: &PathBatch, crops: &CropBatch) -> PathBatch {
+    let [batch, _, height, width] = canvas.dims();
+    let [_, count] = paths.dims();
+    let read = |tensor: &Tensor<4>| -> Vec<f32> { tensor.try_to_vec_as().expect("crops are readable") };
+    let (canvas, target, masks) = (read(canvas), read(&crops.pixels), read(&crops.masks));
+    let (pixels, scenes) = (height * width, paths.to_scenes());
+    let colours: Vec<f32> = scenes
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(b, scene)| {
+            let planes = 3 * pixels * b..3 * pixels * (b + 1);
+            let window = Window::new(
+                width as u32,
+                height as u32,
+                canvas[planes.clone()].to_vec(),
+                target[planes].to_vec(),
+            )
+            .expect("a canvas and a target of 3 × S × S values");
+            window
+                .fit_colours(scene, Some(&masks[pixels * b..pixels * (b + 1)]))
+                .into_iter()
+                .flat_map(|p| p.color)
+        })
+        .collect();
+    paths.with_colors(Tensor::from_data(TensorData::new(colours, [batch, count, 3]), &paths.device()))
 }
 
 /// The terms of a loss that read the picture: the multi-scale masked L2 of the render and the

@@ -7,7 +7,7 @@ use burn::tensor::Device;
 use model::{CoarseModel, RefineModel, load_coarse};
 use train::config::{self, CoarseConfig, Guidance, Rasterizer, RefineConfig};
 use train::inference::RefineCheck;
-use train::objective::{CoarseObjective, RefineObjective};
+use train::objective::{CoarseObjective, Objective, RefineObjective};
 use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
 use train::validation::{Validation, ValidationConfig};
 
@@ -254,5 +254,43 @@ fn refinement_on_the_fallback_drawing_trains_and_is_scored_at_inference() {
     assert!(metric(&dir, "val_refine_regions_db").iter().all(|&(_, db)| db > 0.0));
     for dir in [held_out, dir] {
         std::fs::remove_dir_all(dir).unwrap();
+    }
+}
+
+/// `loss.colours = "fitted"` scores E_r's paths as inference keeps them: the same shapes and
+/// opacities in the colours that fit the image best over the canvas, so on one batch of the
+/// fallback drawing the fitted L2 is below the L2 in an untrained E_r's own colours, for both
+/// rasterizers.
+#[test]
+fn fitted_colours_score_the_shapes_inference_keeps() {
+    let device = Device::flex().autodiff();
+    let model_config = smoke_coarse().model.0;
+    let teacher = CoarseModel::new(&model_config, &device);
+    let student = RefineModel::new(&model_config, &device).inherit_encoder(&teacher);
+    let mut config: RefineConfig = config::load(&workspace().join("configs/smoke-refine.toml")).unwrap();
+    config.data.canvas = train::config::SampleCanvas::Fallback;
+    let samples = train::data::DataSource::new(&config.data, &model_config, 4, 7)
+        .unwrap()
+        .batch(0)
+        .unwrap()
+        .tensors(&device);
+    for rasterizer in [Rasterizer::Soft, Rasterizer::Exact] {
+        config.raster.rasterizer = rasterizer;
+        let mut step = |colours| {
+            config.loss.colours = colours;
+            let objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
+            let output = objective.step(&student, &samples, 0);
+            let l2 = output.terms.iter().find(|(name, _)| *name == "l2").unwrap().1.clone();
+            (l2.into_scalar::<f32>(), output.paths)
+        };
+        let (own, predicted) = step(train::config::PathColours::Predicted);
+        let (fitted, refitted) = step(train::config::PathColours::Fitted);
+        assert!(fitted < own, "{rasterizer:?}: fitted {fitted} against {own}");
+        let values = |t: burn::tensor::Tensor<4>| t.try_to_vec_as::<f32>().unwrap();
+        assert_eq!(values(predicted.points()), values(refitted.points()));
+        assert_ne!(
+            predicted.colors().try_to_vec_as::<f32>().unwrap(),
+            refitted.colors().try_to_vec_as::<f32>().unwrap()
+        );
     }
 }
