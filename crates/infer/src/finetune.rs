@@ -9,7 +9,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use common::psnr_of_mse;
-use raster::{COORDS, PARAMS, Path, Shape, Window};
+use raster::{PARAMS, Path, PathAdam, Shape, Window};
 
 use crate::fallback::fitted_path;
 use crate::scene::Scene;
@@ -93,7 +93,7 @@ pub fn finetune_with_progress(
     };
     let Some(start) = original.iter().map(as_path).collect::<Option<Vec<Path>>>() else { return 0 };
     let mut params: Vec<[f32; PARAMS]> = start.iter().map(|path| path.to_params()).collect();
-    let mut adam = Adam::new(params.len());
+    let mut adam = PathAdam::new(params.len());
     let mut best = (f64::INFINITY, start);
     let total_steps = match options.budget {
         Budget::Steps(steps) => Some(steps),
@@ -139,39 +139,4 @@ pub fn finetune_with_progress(
     let psnr = psnr_of_mse(scene.total_error() / values);
     let _ = on_step(&Progress { seconds: started.elapsed().as_secs_f64(), steps, total_steps, psnr });
     steps
-}
-
-/// Adam with burn's defaults (β₁ 0.9, β₂ 0.999, ε 1e-5) on paths' parameters, which stay in
-/// [0, 1] (coordinates in the canvas, colours, opacity).
-struct Adam {
-    moments: Vec<([f32; PARAMS], [f32; PARAMS])>,
-    steps: i32,
-}
-
-impl Adam {
-    const BETAS: (f32, f32) = (0.9, 0.999);
-    const EPSILON: f32 = 1e-5;
-
-    fn new(paths: usize) -> Self {
-        Self { moments: vec![([0.0; PARAMS], [0.0; PARAMS]); paths], steps: 0 }
-    }
-
-    /// One step with rate `lr.0` for coordinates and `lr.1` for colour and opacity.
-    fn step(&mut self, lr: (f32, f32), params: &mut [[f32; PARAMS]], gradients: &[[f32; PARAMS]]) {
-        self.steps += 1;
-        let (b1, b2) = Self::BETAS;
-        let (c1, c2) = (1.0 - b1.powi(self.steps), 1.0 - b2.powi(self.steps));
-        for ((values, gradient), (first, second)) in params.iter_mut().zip(gradients).zip(&mut self.moments) {
-            for i in 0..PARAMS {
-                // A non-finite gradient (a degenerate outline) moves nothing rather than poison
-                // the path with NaN.
-                let g = if gradient[i].is_finite() { gradient[i] } else { 0.0 };
-                first[i] = b1 * first[i] + (1.0 - b1) * g;
-                second[i] = b2 * second[i] + (1.0 - b2) * g * g;
-                let rate = if i < COORDS { lr.0 } else { lr.1 };
-                let update = rate * (first[i] / c1) / ((second[i] / c2).sqrt() + Self::EPSILON);
-                values[i] = (values[i] - update).clamp(0.0, 1.0);
-            }
-        }
-    }
 }

@@ -2,6 +2,7 @@
 //! rasterizer used for training, the exact tiny-skia renderer used for pictures and metrics, SVG
 //! export, and the choice of compute backend.
 
+mod adam;
 pub mod device;
 mod exact;
 mod exact_batch;
@@ -14,6 +15,7 @@ mod shapes;
 mod soft;
 mod svg;
 
+pub use adam::PathAdam;
 pub use device::{Backend, BackendError};
 pub use exact::{coverage_exact, coverage_exact_window, paint_exact, render_exact, skia_outline};
 pub use exact_batch::ExactBatch;
