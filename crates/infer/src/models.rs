@@ -151,13 +151,13 @@ impl Models {
                 let checkpoint = source.load()?;
                 let name = source.name();
                 checkpoint.expect_stage(Stage::Refine, &name)?;
-                if checkpoint.model_config != config {
+                if !config.serves_refine(&checkpoint.model_config) {
                     return Err(CheckpointError::Mismatch {
                         path: name,
                         problem: MismatchProblem::ConfigDiffers(coarse_name),
                     });
                 }
-                let model = checkpoint.apply(RefineModel::new(&config, device), &name)?;
+                let model = checkpoint.apply(RefineModel::new(&checkpoint.model_config, device), &name)?;
                 Some((model, identity(source, &checkpoint)))
             }
         };

@@ -16,6 +16,20 @@ pub enum Preset {
     Cpu,
 }
 
+/// Where E_r's paths start before its head moves them (`model.refine_anchor`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RefineAnchor {
+    /// Each path in its cell of a grid over the crop, offsets learned
+    /// ([`crate::prior::grid_prior`]): where they start does not depend on the input.
+    #[default]
+    Grid,
+    /// Each path as a small square where the canvas errs most against the target, no two on
+    /// the same pixels ([`crate::error_squares`]), learned offsets starting at zero: E_r adds
+    /// its paths where the error is largest from the first step, and learns their shapes.
+    Errors,
+}
+
 /// Architecture of E_c and E_r (they share the encoder and the decoder's shape).
 ///
 /// Read from TOML with unknown keys rejected. Plain serde rather than `burn::Config`, whose
@@ -49,6 +63,10 @@ pub struct ModelConfig {
     /// works on inputs made the way it was trained on.
     #[serde(default)]
     pub input: InputSpec,
+    /// Where E_r's paths start (E_c does not read it); checkpoints from before it was a setting
+    /// read as [`RefineAnchor::Grid`].
+    #[serde(default)]
+    pub refine_anchor: RefineAnchor,
 }
 
 impl ModelConfig {
@@ -68,6 +86,7 @@ impl ModelConfig {
                 query_heads: 8,
                 fusion_channels: 32,
                 input: InputSpec::default(),
+                refine_anchor: RefineAnchor::Grid,
             },
             Preset::Cpu => Self {
                 input_size: 64,
@@ -82,6 +101,7 @@ impl ModelConfig {
                 query_heads: 4,
                 fusion_channels: 16,
                 input: InputSpec::default(),
+                refine_anchor: RefineAnchor::Grid,
             },
         }
     }
@@ -124,6 +144,12 @@ impl ModelConfig {
             )));
         }
         Ok(())
+    }
+
+    /// Whether a checkpoint of E_r made with `refine` works with an E_c made with `self`: the
+    /// same networks and input contract; only E_r's own settings may differ.
+    pub fn serves_refine(&self, refine: &ModelConfig) -> bool {
+        *self == ModelConfig { refine_anchor: self.refine_anchor, ..refine.clone() }
     }
 
     /// Number of ViT tokens (patches), without the class token.

@@ -21,9 +21,10 @@ pub use checkpoint::{
     Checkpoint, CheckpointError, FormatProblem, MismatchProblem, Stage, load_coarse, load_refine,
 };
 pub use coarse::CoarseModel;
-pub use config::{InvalidSetting, ModelConfig, Preset};
+pub use config::{InvalidSetting, ModelConfig, Preset, RefineAnchor};
 pub use decoder::PathDecoder;
 pub use input::{CropBatch, InputSpec, MIN_REGION_PIXELS, canvas_cells, crop_to_image};
 pub use operating::OperatingPoint;
+pub use prior::{ANCHOR_SIDE, error_squares};
 pub use refine::RefineModel;
 pub use vit::VitEncoder;

@@ -9,15 +9,18 @@ use raster::{PARAMS_OPAQUE, PathBatch};
 
 use crate::coarse::CoarseModel;
 use crate::config::ModelConfig;
+use crate::config::RefineAnchor;
 use crate::decoder::PathDecoder;
-use crate::prior::{grid_prior, small_head};
+use crate::prior::{error_anchors, grid_prior, small_head};
 use crate::vit::VitEncoder;
 
 /// The refinement model: three 3×3 convolutions fuse (target, canvas) into a 3-channel image of
 /// the input size (ReLU between them; the last is linear so the fused image is signed like the
 /// coarse model's −1-filled input), then the same ViT and decoder as E_c, then a linear head to
-/// `refine_paths` paths of 27 parameters (plus the [`grid_prior`] offsets) through a sigmoid.
-/// Refinement paths are always visible.
+/// `refine_paths` paths of 27 parameters through a sigmoid, its logits added to where the paths
+/// start (`model.refine_anchor`): the learned [`grid_prior`] offsets, or squares where the
+/// canvas errs most ([`error_anchors`]) plus learned offsets from zero. Refinement paths are
+/// always visible.
 #[derive(Module, Debug)]
 pub struct RefineModel {
     fusion: [Conv2d; 3],
@@ -26,6 +29,8 @@ pub struct RefineModel {
     decoder: PathDecoder,
     head: Linear,
     prior: Param<Tensor<2>>,
+    #[module(skip)]
+    anchor: RefineAnchor,
 }
 
 impl RefineModel {
@@ -43,7 +48,13 @@ impl RefineModel {
             head: LinearConfig::new(config.query_dim, PARAMS_OPAQUE)
                 .with_initializer(small_head())
                 .init(device),
-            prior: grid_prior(config.refine_paths, PARAMS_OPAQUE, device),
+            prior: match config.refine_anchor {
+                RefineAnchor::Grid => grid_prior(config.refine_paths, PARAMS_OPAQUE, device),
+                RefineAnchor::Errors => {
+                    Param::from_tensor(Tensor::zeros([config.refine_paths, PARAMS_OPAQUE], device))
+                }
+            },
+            anchor: config.refine_anchor,
         }
     }
 
@@ -59,12 +70,19 @@ impl RefineModel {
     /// opaque paths in the crops' unit squares, to be painted over the canvas.
     pub fn forward(&self, targets: Tensor<4>, canvas: Tensor<4>) -> PathBatch {
         let [first, second, last] = &self.fusion;
+        let start = match self.anchor {
+            RefineAnchor::Grid => self.prior.val().unsqueeze(),
+            RefineAnchor::Errors => {
+                error_anchors(&targets, &canvas, self.refine_paths(), PARAMS_OPAQUE)
+                    + self.prior.val().unsqueeze()
+            }
+        };
         let x = Tensor::cat(vec![targets, canvas], 1);
         let x = self.activation.forward(first.forward(x));
         let x = self.activation.forward(second.forward(x));
         let fused = last.forward(x);
         let features = self.decoder.forward(self.encoder.forward(fused));
-        PathBatch::opaque(sigmoid(self.head.forward(features) + self.prior.val().unsqueeze()))
+        PathBatch::opaque(sigmoid(self.head.forward(features) + start))
     }
 
     /// Paths added per call (m).

@@ -270,3 +270,42 @@ fn a_gradient_step_reduces_the_reconstruction_loss() {
     let after: f32 = loss_of(&coarse).into_scalar();
     assert!(after < before_value * 0.98, "loss {before_value} → {after}");
 }
+
+/// E_r anchored at errors starts each path, before any training, on a square where the canvas
+/// errs most: on a grey canvas that misses one red square of the target, the first path sits on
+/// it; a checkpoint of that E_r serves an E_c of the same networks, and the anchor survives the
+/// round trip.
+#[test]
+fn an_error_anchored_refinement_starts_where_the_canvas_errs() {
+    let device = Device::flex();
+    let config = ModelConfig { refine_anchor: model::RefineAnchor::Errors, ..tiny() };
+    assert!(
+        tiny().serves_refine(&config) && !tiny().serves_refine(&ModelConfig { depth: 3, ..config.clone() })
+    );
+    let size = config.input_size;
+    let canvas = Tensor::<4>::full([1, 3, size, size], 0.5, &device);
+    // A red square of 6 px with its corner at (20, 8): the anchor's 4-px square lands inside.
+    let red = Tensor::<4>::from_data(
+        burn::tensor::TensorData::new(
+            [1.0f32, 0.0, 0.0].iter().flat_map(|&v| std::iter::repeat_n(v, 36)).collect::<Vec<_>>(),
+            [1, 3, 6, 6],
+        ),
+        &device,
+    );
+    let target = canvas.clone().slice_assign([0..1, 0..3, 8..14, 20..26], red);
+    let centre = |model: &RefineModel| {
+        let path = model.forward(target.clone(), canvas.clone()).to_scenes()[0][0];
+        let mean = |axis: usize| path.points.iter().map(|p| p[axis]).sum::<f32>() / path.points.len() as f32;
+        [mean(0) * size as f32, mean(1) * size as f32]
+    };
+    let model = RefineModel::new(&config, &device);
+    let [x, y] = centre(&model);
+    assert!((20.0..26.0).contains(&x) && (8.0..14.0).contains(&y), "first path at ({x}, {y})");
+
+    let file = std::env::temp_dir().join(format!("supersvg-anchored-{}.ckpt", std::process::id()));
+    Checkpoint::of_model(Stage::Refine, &config, &model, DType::F32).save(&file).unwrap();
+    let (loaded, loaded_config) = load_refine(&file, &device).unwrap();
+    assert_eq!(loaded_config.refine_anchor, model::RefineAnchor::Errors);
+    assert_eq!(centre(&loaded), [x, y]);
+    std::fs::remove_file(file).unwrap();
+}
