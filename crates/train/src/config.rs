@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use model::{InvalidSetting, ModelConfig, Preset};
+use model::{InvalidSetting, ModelConfig, Preset, RefineAnchor};
 use raster::SoftRasterOptions;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -36,6 +36,9 @@ pub struct CoarseConfig {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RefineConfig {
+    /// E_r's own settings on top of the coarse checkpoint's model.
+    #[serde(default)]
+    pub model: RefineModelSettings,
     /// Where samples come from.
     pub data: DataConfig,
     /// Optimizer, schedule, checkpoints.
@@ -49,6 +52,22 @@ pub struct RefineConfig {
     /// Held-out crops scored during training.
     #[serde(default)]
     pub validation: ValidationConfig,
+}
+
+/// The `[model]` table of a refine config: the networks are the coarse checkpoint's (`--init`),
+/// so only what E_r alone reads can be set here.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RefineModelSettings {
+    /// Where E_r's paths start before its head moves them.
+    pub refine_anchor: RefineAnchor,
+}
+
+impl RefineModelSettings {
+    /// `coarse`, the coarse checkpoint's model, with these settings: E_r's model.
+    pub fn apply(&self, coarse: &ModelConfig) -> ModelConfig {
+        ModelConfig { refine_anchor: self.refine_anchor, ..coarse.clone() }
+    }
 }
 
 /// The `[model]` table: a preset and overrides, resolved into a validated [`ModelConfig`].
@@ -334,6 +353,33 @@ pub enum PathColours {
     Fitted,
 }
 
+/// What E_r's image term measures (`loss.reconstruction`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Reconstruction {
+    /// The multi-scale L2 of all of E_r's paths drawn together over the canvas.
+    #[default]
+    Joint,
+    /// Inference's acceptance test: each path alone over the canvas, and the error it takes
+    /// away from the box counted only where it takes some away (a path that would be refused
+    /// costs nothing, as at inference). Needs `data.canvas = "fallback"`, whose boxes are all
+    /// image.
+    Accepted,
+}
+
+/// What E_r's guidance pulls its paths towards (`loss.teacher`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Teacher {
+    /// The frozen E_c's visible paths after the split: the paper's coarse-paths guidance.
+    #[default]
+    Coarse,
+    /// The paths the exact optimizer places on the sample's canvas against its image
+    /// ([`crate::teacher::OptimizerTeacher`], `loss.teacher_steps` Adam steps): seeded where the
+    /// canvas errs most. Needs `data.canvas = "fallback"`, whose boxes are all image.
+    Optimizer,
+}
+
 /// The `[loss]` table of the refinement stage.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -356,6 +402,16 @@ pub struct RefineLoss {
     pub boundary: BoundaryWeight,
     /// The colours the image terms score E_r's paths in.
     pub colours: PathColours,
+    /// What the image term measures.
+    pub reconstruction: Reconstruction,
+    /// With `reconstruction = "accepted"`, the share of its harm a path that would be refused
+    /// costs: 0 is inference's test (a refused path costs nothing and learns nothing), above 0
+    /// pulls refused paths towards where they would be kept.
+    pub refused_weight: f32,
+    /// The paths the guidance pulls E_r's towards.
+    pub teacher: Teacher,
+    /// Adam steps of the optimizer teacher on each sample.
+    pub teacher_steps: usize,
 }
 
 impl Default for RefineLoss {
@@ -370,6 +426,10 @@ impl Default for RefineLoss {
             distance_color: 1.0,
             boundary: BoundaryWeight::default(),
             colours: PathColours::Predicted,
+            reconstruction: Reconstruction::Joint,
+            refused_weight: 0.0,
+            teacher: Teacher::Coarse,
+            teacher_steps: 100,
         }
     }
 }
@@ -504,6 +564,16 @@ impl Validate for RefineConfig {
         check(self.loss.gamma >= 0.0 && self.loss.gamma.is_finite(), "loss.gamma must be zero or positive")?;
         check(self.loss.distance_coords >= 0.0, "loss.distance_coords must not be negative")?;
         check(self.loss.distance_color >= 0.0, "loss.distance_color must not be negative")?;
+        check(
+            self.loss.teacher == Teacher::Coarse || self.data.canvas == SampleCanvas::Fallback,
+            "loss.teacher = \"optimizer\" needs data.canvas = \"fallback\" (a drawing and the image under each box)",
+        )?;
+        check(self.loss.teacher_steps >= 1, "loss.teacher_steps must be positive")?;
+        check((0.0..=1.0).contains(&self.loss.refused_weight), "loss.refused_weight must be within [0, 1]")?;
+        check(
+            self.loss.reconstruction == Reconstruction::Joint || self.data.canvas == SampleCanvas::Fallback,
+            "loss.reconstruction = \"accepted\" needs data.canvas = \"fallback\" (a drawing and the image under each box)",
+        )?;
         self.loss.boundary.validate()
     }
 }
@@ -643,6 +713,14 @@ mod tests {
         assert!(err.starts_with("data.canvas is E_r's"), "{err}");
         let refine = parse::<RefineConfig>("[data]\ncanvas = \"fallback\"\n[train]\n").unwrap();
         assert_eq!(refine.data.canvas, SampleCanvas::Fallback);
+        let err = problem::<RefineConfig>("[data]\n[train]\n[loss]\nteacher = \"optimizer\"\n");
+        assert!(err.starts_with("loss.teacher = \"optimizer\" needs data.canvas"), "{err}");
+        let taught = "[data]\ncanvas = \"fallback\"\n[train]\n[loss]\nteacher = \"optimizer\"\n";
+        assert_eq!(parse::<RefineConfig>(taught).unwrap().loss.teacher, Teacher::Optimizer);
+        let err = problem::<RefineConfig>("[data]\n[train]\n[loss]\nreconstruction = \"accepted\"\n");
+        assert!(err.starts_with("loss.reconstruction = \"accepted\" needs data.canvas"), "{err}");
+        let err = problem::<RefineConfig>("[data]\n[train]\n[loss]\nrefused_weight = 2.0\n");
+        assert_eq!(err, "loss.refused_weight must be within [0, 1]");
         let err = problem::<RefineConfig>("[data]\n[train]\n[validation]\nrefine_share = 0.0\n");
         assert_eq!(err, "validation.refine_share must be within (0, 1)");
     }

@@ -10,5 +10,6 @@ pub mod optimizer;
 mod preview;
 mod report;
 mod schedule;
+pub mod teacher;
 pub mod trainer;
 pub mod validation;

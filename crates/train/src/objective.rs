@@ -8,20 +8,23 @@ use dpw::{PathDistance, boundary_loss_of_union, dpw, multiscale_masked_l2, path_
 use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use raster::{ExactBatch, PathBatch, SoftRasterOptions, Window, paint_soft, paint_soft_with_union};
+use raster::{ExactBatch, PARAMS, PathBatch, SoftRasterOptions, Window, paint_soft, paint_soft_with_union};
 use rayon::prelude::*;
 
 use crate::config::{
-    Canvas, CoarseConfig, CoarseLoss, Guidance, PathColours, Rasterizer, RefineConfig, RefineLoss,
+    Canvas, CoarseConfig, CoarseLoss, Guidance, PathColours, Rasterizer, Reconstruction, RefineConfig,
+    RefineLoss, Teacher,
 };
 use crate::data::Samples;
 use crate::inference::{AtInference, CoarseCheck, RefineCheck};
+use crate::teacher::OptimizerTeacher;
 
 /// What one step computed: the total to minimize, the terms to report, and what to preview.
 pub struct StepOutput {
     /// The weighted sum of the terms.
     pub total: Tensor<1>,
-    /// Each term before weighting, and each weight, by name (for logs and NaN reports).
+    /// Each term before weighting, by name, and figures reported beside them (E_r's
+    /// `removed` and `teacher_removed`), for logs and NaN reports.
     pub terms: Vec<(&'static str, Tensor<1>)>,
     /// The weights the terms were given at this step.
     pub weights: Vec<(&'static str, f32)>,
@@ -163,7 +166,9 @@ impl Objective for CoarseObjective {
 /// measures; nothing lies outside that mask, so the boundary term is 0.
 ///
 /// With `loss.colours = "fitted"` the image terms score S' in the colours inference would give
-/// it (each path's least-squares colour over what lies below it), not in E_r's own.
+/// it (each path's least-squares colour over what lies below it), not in E_r's own. With
+/// `loss.teacher = "optimizer"` the guidance ties S' to the paths the exact optimizer places on
+/// that canvas ([`OptimizerTeacher`]) instead of to S₂.
 pub struct RefineObjective {
     /// The trained coarse model (frozen).
     pub teacher: CoarseModel,
@@ -223,7 +228,7 @@ impl Objective for RefineObjective {
         let mut laps = Laps::start();
         let coarse = self.teacher.forward(pixels.clone()).detach();
         laps.lap("teacher");
-        let [batch, count] = coarse.dims();
+        let [batch, _] = coarse.dims();
         let split = match samples.drawn {
             Some(_) => Split::guide_only(&coarse),
             None => Split::draw(&coarse, model.refine_paths(), self.seed, step),
@@ -255,12 +260,57 @@ impl Objective for RefineObjective {
                 fitted
             }
         };
+        // What the guidance pulls towards: E_c's paths after the split, or the optimizer's.
+        let (guide, split) = match self.loss.teacher {
+            Teacher::Coarse => (coarse, split),
+            Teacher::Optimizer => {
+                let teacher =
+                    OptimizerTeacher { paths: model.refine_paths(), steps: self.loss.teacher_steps };
+                let taught = teacher.teach(&canvas, &scored.pixels);
+                laps.lap("teacher");
+                let split = Split::guide_only(&taught);
+                (taught, split)
+            }
+        };
+        // On inference's drawing, how much of each box's error E_r's paths take away, and
+        // the optimizer's where it teaches: the gap between the two is what E_r has to learn.
+        let mut shares = Vec::new();
+        if samples.drawn.is_some() {
+            let removed = |paths: &PathBatch| {
+                let render = ExactBatch::paint(&canvas, paths).render(&device);
+                removed_share(&canvas, &render, &scored.pixels)
+            };
+            shares.push(("removed", removed(&scored_paths.detach())));
+            if self.loss.teacher == Teacher::Optimizer {
+                shares.push(("teacher_removed", removed(&guide)));
+            }
+            laps.lap("rasterizer");
+        }
+        let accepted = (self.loss.reconstruction == Reconstruction::Accepted).then(|| {
+            let gain = accepted_gain(
+                &canvas,
+                &added,
+                &scored,
+                self.loss.colours,
+                self.loss.refused_weight,
+                self.rasterizer,
+                &self.raster,
+            );
+            laps.lap("rasterizer");
+            gain
+        });
         let terms = ImageTerms { l2_levels: self.loss.l2_levels, dilation: self.loss.boundary.dilation };
         let (render, l2, bound) =
             terms.of(canvas, &scored_paths, &scored, self.rasterizer, &self.raster, &mut laps);
+        // With the acceptance test as the image term, the joint L2 is only reported.
+        let (image, mut terms) = match accepted {
+            Some(gain) => (gain.clone().neg(), vec![("l2", l2), ("accepted_gain", gain)]),
+            None => (l2.clone(), vec![("l2", l2)]),
+        };
 
+        let [_, count] = guide.dims();
         let distance = PathDistance { coords: self.loss.distance_coords, color: self.loss.distance_color };
-        let distances = distance.between(&added, &coarse); // [B, m, n]
+        let distances = distance.between(&added, &guide); // [B, m, n]
         let guidance = match self.loss.guidance {
             Guidance::Dpw => {
                 let m = model.refine_paths();
@@ -279,10 +329,12 @@ impl Objective for RefineObjective {
             Guidance::None => Tensor::zeros([1], &device),
         };
         let (guidance_weight, bound_weight) = (self.loss.guidance_at(step), self.loss.boundary.at(step));
-        let total = l2.clone() + guidance.clone() * guidance_weight + bound.clone() * bound_weight;
+        let total = image + guidance.clone() * guidance_weight + bound.clone() * bound_weight;
+        terms.extend([("guidance", guidance), ("bound", bound)]);
+        terms.extend(shares);
         StepOutput {
             total,
-            terms: vec![("l2", l2), ("guidance", guidance), ("bound", bound)],
+            terms,
             weights: vec![("lambda_guidance", guidance_weight), ("lambda_bound", bound_weight)],
             render,
             paths: first.then(&scored_paths),
@@ -322,6 +374,78 @@ fn with_fitted_colours(canvas: &Tensor<4>, paths: &PathBatch, crops: &CropBatch)
         })
         .collect();
     paths.with_colors(Tensor::from_data(TensorData::new(colours, [batch, count, 3]), &paths.device()))
+}
+
+/// Inference's acceptance test as a loss term: each of `paths` (`[B, m]`) painted alone over
+/// `canvas` (`[B, 3, S, S]`), in its fitted colour where `colours` says so, and the squared
+/// error it takes away from the box against `crops` (a mean over the box's values) summed over
+/// the paths that take some away, a mean over samples (`[1]`). A path that would be refused
+/// adds what it adds to the error times `refused` (0: nothing and no gradient, as at inference;
+/// above 0, a pull towards where it would be kept); to be maximized.
+fn accepted_gain(
+    canvas: &Tensor<4>,
+    paths: &PathBatch,
+    crops: &CropBatch,
+    colours: PathColours,
+    refused: f32,
+    rasterizer: Rasterizer,
+    options: &SoftRasterOptions,
+) -> Tensor<1> {
+    let [batch, m] = paths.dims();
+    let [_, _, size, _] = canvas.dims();
+    let device = paths.device();
+    // Every path a sample of its own, over its sample's canvas and image.
+    let each = |tensor: &Tensor<4>, channels: usize| {
+        tensor.clone().unsqueeze_dim::<5>(1).expand([batch, m, channels, size, size]).reshape([
+            batch * m,
+            channels,
+            size,
+            size,
+        ])
+    };
+    let (canvases, alone) =
+        (each(canvas, 3), CropBatch { pixels: each(&crops.pixels, 3), masks: each(&crops.masks, 1) });
+    let single = PathBatch::new(paths.params().clone().reshape([batch * m, 1, PARAMS]));
+    let single = match colours {
+        PathColours::Predicted => single,
+        PathColours::Fitted => with_fitted_colours(&canvases, &single, &alone),
+    };
+    let error = |drawing: Tensor<4>| {
+        (drawing - alone.pixels.clone()).square().reshape([batch * m, 3 * size * size]).mean_dim(1)
+    };
+    let before = error(canvases.clone()).detach();
+    let gain = |render: Tensor<4>| {
+        let each = before.clone() - error(render);
+        (each.clone().clamp_min(0.0) + each.clamp_max(0.0) * refused).sum() / batch as f32
+    };
+    match rasterizer {
+        Rasterizer::Soft => gain(paint_soft(canvases, &single, options)),
+        Rasterizer::Exact => {
+            let exact = ExactBatch::paint(&canvases, &single);
+            let render = exact.render(&device).require_grad();
+            let value = gain(render.clone());
+            let by_render = render.grad(&value.clone().backward());
+            let gradient = exact.gradient(by_render.as_ref(), None, &device).reshape([batch, m, PARAMS]);
+            // Worth nothing, and differentiates to the gradient (as `ImageTerms::of` carries it).
+            let inner = (single.params().clone().reshape([batch, m, PARAMS]) * gradient).sum();
+            value.detach() + (inner.clone() - inner.detach())
+        }
+    }
+}
+
+/// The share of the squared error of `canvas` against `target` (`[B, 3, S, S]`) that `render`
+/// takes away, the mean over samples (`[1]`, not differentiated): 1 where it draws the image,
+/// 0 where it changes nothing, below 0 where it makes it worse. Reported, not minimized.
+fn removed_share(canvas: &Tensor<4>, render: &Tensor<4>, target: &Tensor<4>) -> Tensor<1> {
+    let [batch, channels, height, width] = canvas.dims();
+    let error = |drawing: &Tensor<4>| {
+        (drawing.clone().detach() - target.clone())
+            .square()
+            .reshape([batch, channels * height * width])
+            .sum_dim(1)
+    };
+    let (before, after) = (error(canvas), error(render));
+    (after / before.clamp_min(1e-12)).neg().add_scalar(1.0).mean()
 }
 
 /// The terms of a loss that read the picture: the multi-scale masked L2 of the render and the
@@ -473,5 +597,74 @@ impl Split {
             }
         }
         Tensor::from_data(TensorData::new(values, [batch, count, 1]), device)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use burn::tensor::Device;
+    use raster::Path;
+
+    use super::*;
+
+    /// The acceptance term counts what each path alone takes away from the box: a path that
+    /// makes the box worse adds nothing and gets no gradient, one that helps adds its gain (on
+    /// both rasterizers, in its own colour or the fitted one); with a weight on refused paths,
+    /// the one that hurts costs that share of its harm and is pulled towards helping.
+    #[test]
+    fn accepted_gain_counts_only_the_paths_that_help() {
+        let device = Device::flex().autodiff();
+        let size = 16;
+        let canvas = Tensor::<4>::full([1, 3, size, size], 0.5, &device);
+        // The image: the grey with a red square where the first path lies.
+        let square = |x: f32, y: f32, color| {
+            Path::quadrilateral([[x, y], [x + 0.25, y], [x + 0.25, y + 0.25], [x, y + 0.25]], color, 1.0)
+        };
+        let helps = square(0.25, 0.25, [0.9, 0.1, 0.1]);
+        let hurts = square(0.625, 0.625, [0.0, 0.0, 1.0]);
+        let pixels = raster::Window::new(
+            size as u32,
+            size as u32,
+            vec![0.5; 3 * size * size],
+            vec![0.5; 3 * size * size],
+        )
+        .unwrap()
+        .render(&[Path { color: [1.0, 0.0, 0.0], ..helps }]);
+        let target = Tensor::<4>::from_data(TensorData::new(pixels, [1, 3, size, size]), &device);
+        let crops = CropBatch { pixels: target.clone(), masks: Tensor::ones([1, 1, size, size], &device) };
+        let options = SoftRasterOptions::default();
+        for rasterizer in [Rasterizer::Exact, Rasterizer::Soft] {
+            let gain = |paths: &PathBatch, colours, refused| {
+                accepted_gain(&canvas, paths, &crops, colours, refused, rasterizer, &options)
+            };
+            let alone = |scene: Vec<Path>, refused| {
+                gain(&PathBatch::from_scenes(&[scene], &device), PathColours::Predicted, refused)
+                    .into_scalar::<f32>()
+            };
+            let params = PathBatch::from_scenes(&[vec![helps, hurts]], &device).into_params().require_grad();
+            let paths = PathBatch::new(params.clone());
+            let both = gain(&paths, PathColours::Predicted, 0.0);
+            let first = alone(vec![helps], 0.0);
+            assert!(
+                first > 0.0 && (both.clone().into_scalar::<f32>() - first).abs() < 1e-6 * first.max(1.0),
+                "{rasterizer:?}"
+            );
+            assert_eq!(alone(vec![hurts], 0.0), 0.0);
+            let gradient: Vec<f32> = params.grad(&both.backward()).unwrap().try_to_vec_as().unwrap();
+            assert!(gradient[..PARAMS].iter().any(|g| *g != 0.0), "{rasterizer:?}: the helpful path moves");
+            assert!(gradient[PARAMS..].iter().all(|g| *g == 0.0), "{rasterizer:?}: the refused one does not");
+            // Weighted: the refused path costs a tenth of its harm, and moves.
+            let harm = alone(vec![hurts], 1.0);
+            assert!(harm < 0.0 && (alone(vec![hurts], 0.1) - 0.1 * harm).abs() < 1e-6, "{rasterizer:?}");
+            let weighted = gain(&paths, PathColours::Predicted, 0.1);
+            let gradient: Vec<f32> = params.grad(&weighted.backward()).unwrap().try_to_vec_as().unwrap();
+            assert!(
+                gradient[PARAMS..].iter().any(|g| *g != 0.0),
+                "{rasterizer:?}: the weighted refused path moves"
+            );
+            // Fitted: the helpful path in the image's red takes away more than in its own.
+            let fitted = gain(&paths, PathColours::Fitted, 0.0);
+            assert!(fitted.into_scalar::<f32>() > first, "{rasterizer:?}");
+        }
     }
 }

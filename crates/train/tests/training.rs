@@ -70,6 +70,26 @@ fn coarse_on(rasterizer: Rasterizer, dir: &Path, steps: usize, resume: bool) -> 
     train(&objective, start, &config.train, &config.data, json, &run).unwrap().final_loss
 }
 
+/// Trains a fresh E_r on `teacher`'s encoder with `config` in a scratch folder named `name`,
+/// without validation; the folder.
+fn train_refine(
+    config: &RefineConfig,
+    teacher: &CoarseModel,
+    model_config: &model::ModelConfig,
+    name: &str,
+    device: Device,
+) -> PathBuf {
+    let dir = scratch(name);
+    let path = checkpoint_path::<RefineObjective>(&dir);
+    let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(teacher);
+    let start = model_from(fresh, model_config, None, &path, (&device, config.train.seed)).unwrap();
+    let objective = RefineObjective::new(config, teacher.clone(), model_config.input);
+    let run = Run { dir: dir.clone(), device, validation: None, overwrite: false };
+    let json = serde_json::to_value(config).unwrap();
+    train(&objective, start, &config.train, &config.data, json, &run).unwrap();
+    dir
+}
+
 #[test]
 fn coarse_loss_falls_and_resuming_reproduces_the_uninterrupted_run() {
     let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
@@ -118,14 +138,7 @@ fn refinement_from_the_smoke_coarse_model_learns_its_dpw_term() {
         let device = Device::flex().autodiff();
         let (teacher, model_config) =
             load_coarse(&checkpoint_path::<CoarseObjective>(&coarse_dir), &device).unwrap();
-        let dir = scratch(&format!("refine-{rasterizer:?}"));
-        let path = checkpoint_path::<RefineObjective>(&dir);
-        let fresh = |c: &model::ModelConfig| RefineModel::new(c, &device).inherit_encoder(&teacher);
-        let start = model_from(fresh, &model_config, None, &path, (&device, config.train.seed)).unwrap();
-        let objective = RefineObjective::new(&config, teacher.clone(), model_config.input);
-        let run = Run { dir: dir.clone(), device, validation: None, overwrite: false };
-        let json = serde_json::to_value(&config).unwrap();
-        train(&objective, start, &config.train, &config.data, json, &run).unwrap();
+        let dir = train_refine(&config, &teacher, &model_config, &format!("refine-{rasterizer:?}"), device);
 
         let dpw: Vec<f64> = metric(&dir, "guidance").into_iter().map(|(_, v)| v).collect();
         assert!(dpw.iter().all(|v| v.is_finite()), "{rasterizer:?}: {dpw:?}");
@@ -263,6 +276,8 @@ fn refinement_on_the_fallback_drawing_trains_and_is_scored_at_inference() {
 /// rasterizers.
 #[test]
 fn fitted_colours_score_the_shapes_inference_keeps() {
+    // It initializes models from the device's shared generator (see SERIAL).
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     let device = Device::flex().autodiff();
     let model_config = smoke_coarse().model.0;
     let teacher = CoarseModel::new(&model_config, &device);
@@ -293,4 +308,27 @@ fn fitted_colours_score_the_shapes_inference_keeps() {
             refitted.colors().try_to_vec_as::<f32>().unwrap()
         );
     }
+}
+
+/// `loss.teacher = "optimizer"`: on inference's drawing, E_r's guidance pulls its paths
+/// towards the paths the exact optimizer places there, and 30 steps on one batch bring them
+/// closer.
+#[test]
+fn refinement_learns_the_optimizers_paths() {
+    let _serial = SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let mut config: RefineConfig = config::load(&workspace().join("configs/smoke-refine.toml")).unwrap();
+    config.data.fixed_batch = true;
+    config.data.canvas = train::config::SampleCanvas::Fallback;
+    config.raster.rasterizer = Rasterizer::Exact;
+    config.loss.teacher = train::config::Teacher::Optimizer;
+    config.loss.teacher_steps = 30;
+    let device = Device::flex().autodiff();
+    let model_config = smoke_coarse().model.0;
+    let teacher = CoarseModel::new(&model_config, &device);
+    let dir = train_refine(&config, &teacher, &model_config, "refine-optimizer-teacher", device);
+
+    let dpw: Vec<f64> = metric(&dir, "guidance").into_iter().map(|(_, v)| v).collect();
+    assert!(dpw.iter().all(|v| v.is_finite() && *v > 0.0), "{dpw:?}");
+    assert!(dpw.last().unwrap() < &(0.8 * dpw[0]), "DPW to the optimizer's paths did not fall: {dpw:?}");
+    std::fs::remove_dir_all(dir).unwrap();
 }

@@ -48,7 +48,8 @@ fn run(
     }
     let dir = args.out.unwrap_or_else(|| "runs/refine".into());
     let device = args.backend.autodiff_device()?;
-    let (teacher, model_config) = load_coarse(&init, &device)?;
+    let (teacher, coarse_config) = load_coarse(&init, &device)?;
+    let model_config = config.model.apply(&coarse_config);
     let resume = if args.resume { Some(resume_from::<RefineObjective>(&dir)?) } else { None };
     let path = checkpoint_path::<RefineObjective>(&dir);
     let weights = match weights {
@@ -56,7 +57,11 @@ fn run(
             let (model, config) = load_refine(&path, &device)?;
             if config != model_config {
                 let init = init.display();
-                return Err(format!("{}: its model is not the model of --init {init}", path.display()).into());
+                return Err(format!(
+                    "{}: its model is not the model of --init {init} with this config's [model]",
+                    path.display()
+                )
+                .into());
             }
             Some(model)
         }
