@@ -18,6 +18,28 @@ pub fn finish(result: anyhow::Result<()>) -> ExitCode {
     }
 }
 
+/// How to run this program again with the arguments it was given, for a report's "Command:"
+/// line: as `cargo run` from the repository (whatever path the binary was started by, so a
+/// report made with an installed or copied binary reads the same), each argument quoted for a
+/// POSIX shell where it needs it (`--peers ''` stays two words).
+pub fn command_line(bin: &str, args: impl IntoIterator<Item = String>) -> String {
+    let mut line = format!("cargo run --release -p eval --bin {bin} --");
+    for arg in args {
+        line.push(' ');
+        line.push_str(&shell_quoted(&arg));
+    }
+    line
+}
+
+fn shell_quoted(arg: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "-_./,=:+@%".contains(c);
+    if !arg.is_empty() && arg.chars().all(plain) {
+        arg.to_string()
+    } else {
+        format!("'{}'", arg.replace('\'', r"'\''"))
+    }
+}
+
 /// Both models, from the given checkpoints or the bundled ones ([`Models::identities`] says
 /// which).
 pub fn load_models(
@@ -32,4 +54,20 @@ pub fn load_models(
     let coarse = source(coarse, &BUILT_IN_COARSE)?;
     let refine = source(refine, &BUILT_IN_REFINE)?;
     Ok(Models::from_sources(&coarse, Some(&refine), device)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn command_line_names_cargo_and_quotes_what_a_shell_would_split() {
+        let args =
+            ["data/eval/photos", "--paths", "500,2000", "--peers", "", "--out", "my report.md", "it's"];
+        assert_eq!(
+            command_line("eval", args.map(String::from)),
+            "cargo run --release -p eval --bin eval -- data/eval/photos --paths 500,2000 --peers '' \
+             --out 'my report.md' 'it'\\''s'"
+        );
+    }
 }

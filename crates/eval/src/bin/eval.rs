@@ -21,7 +21,7 @@ use common::decode::load;
 use common::folder::files_in;
 use common::write::{create_temporary_folder, folder_of, probe_folder, write_atomic, write_png};
 use common::{WORKING_SIZES, mse, psnr, ssim};
-use eval::cli::{finish, load_models};
+use eval::cli::{command_line, finish, load_models};
 use eval::lpips::Lpips;
 use eval::peers::{
     PeerError, VtracerSettings, available, count_shapes, mean_color_superpixels, potrace_colors,
@@ -546,7 +546,7 @@ fn report(
          subpaths, the same unit for every method.\n\nCommand: `{}`\n\n",
         args.dir.display(),
         args.size,
-        std::env::args().collect::<Vec<_>>().join(" ")
+        command_line("eval", std::env::args().skip(1))
     );
     for table in tables(results) {
         let title = table.title();

@@ -17,7 +17,7 @@ use clap::Parser;
 use common::decode::load;
 use common::folder::files_in;
 use common::write::write_atomic;
-use eval::cli::{finish, load_models};
+use eval::cli::{command_line, finish, load_models};
 use infer::scene::{Origin, StageCounts};
 use infer::{BudgetSplit, Job, PathBudget, run};
 use model::{Checkpoint, OperatingPoint};
@@ -158,7 +158,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         args.size,
         models.identities.0,
         models.identities.1.as_ref().map_or("none".to_string(), ToString::to_string),
-        std::env::args().collect::<Vec<_>>().join(" ")
+        command_line("tune", std::env::args().skip(1))
     );
     for paths in &args.paths {
         let _ = write!(text, " PSNR @{paths} | stages @{paths} | s @{paths} |");
