@@ -27,10 +27,11 @@ pub struct CoarseBudget<'a> {
     pub trade: Option<Trade<'a>>,
 }
 
-/// E_c's paths paid for with regions: the segmentation fills the budget, and each E_c path kept
-/// takes the place of a region, merged away where merging costs least. A path is worth its
-/// region only if it takes away more error than the merge adds, so E_c draws only where it
-/// beats spending the same paths on regions.
+/// The networks' paths paid for with regions: the segmentation fills the budget, and each E_c
+/// (or E_r, [`crate::refine::draw_refinement_traded`]) path kept takes the place of a region,
+/// merged away where merging costs least. A path is worth its region only if it takes away
+/// more error than the merge adds, so the networks draw only where they beat spending the same
+/// paths on regions.
 #[derive(Clone, Copy, Debug)]
 pub struct Trade<'a> {
     /// The image's merge tree, of which the scene's segmentation is a cut: what merging
@@ -128,19 +129,36 @@ pub fn draw_coarse(
         return;
     }
     let cut = Arc::new(hierarchy.cut(&target, regions - bought));
-    let fine_to_cut = region_map(&segmentation, &cut);
     let mut bought: Vec<(usize, &Tried)> =
         kept[..bought].iter().map(|tried| (tried.position(scene), tried)).collect();
     bought.sort_by_key(|(position, _)| *position);
-    let mut proposals = vec![Vec::new(); cut.regions.len()];
-    for (_, tried) in bought {
-        proposals[fine_to_cut[tried.region as usize] as usize].push(tried.path);
-    }
-    let merged = FallbackDrawing::new(&target, &cut, tolerance);
-    let order = merged.order.clone();
-    *scene = fallback_only(&target, &cut, merged);
-    paint_with(scene, &order, proposals);
+    let bought = bought.into_iter().map(|(_, tried)| (tried.region, tried.path));
+    *scene = draw_on_cut(&target, &segmentation, cut, tolerance, bought);
     settle(scene, alone, error);
+}
+
+/// `target` drawn on `cut`, a cut of the merge tree `fine` is a finer cut of: the fallback
+/// drawing of `cut`, then E_c's `paths` (each with the region of `fine` it was drawn for, in
+/// painter's order), each in the region of `cut` that holds its own and kept where it still
+/// lowers the error ([`paint_with`]). How a drawing is made again when regions are merged away
+/// to pay for paths.
+pub(crate) fn draw_on_cut(
+    target: &Arc<Rgb32FImage>,
+    fine: &Segmentation,
+    cut: Arc<Segmentation>,
+    tolerance: Option<f32>,
+    paths: impl IntoIterator<Item = (u32, Path)>,
+) -> Scene {
+    let fine_to_cut = region_map(fine, &cut);
+    let mut proposals = vec![Vec::new(); cut.regions.len()];
+    for (region, path) in paths {
+        proposals[fine_to_cut[region as usize] as usize].push(path);
+    }
+    let merged = FallbackDrawing::new(target, &cut, tolerance);
+    let order = merged.order.clone();
+    let mut scene = fallback_only(target, &cut, merged);
+    paint_with(&mut scene, &order, proposals);
+    scene
 }
 
 /// `scene` with E_c's paths, painted again in one pass (its boxes were painted in windows), or
@@ -164,7 +182,7 @@ const FIRST_ROUND: usize = 8;
 /// How many of the paths with `gains` (largest first) to buy when the k-th costs the merges
 /// that free k regions (`merged(k)`: the error they add): the k with the largest gain less
 /// cost, 0 when no k gains more than it costs.
-fn worth_their_regions(gains: &[f64], merged: impl Fn(usize) -> f64) -> usize {
+pub(crate) fn worth_their_regions(gains: &[f64], merged: impl Fn(usize) -> f64) -> usize {
     let mut best = (0, 0.0);
     let mut gained = 0.0;
     for (k, gain) in gains.iter().enumerate() {
@@ -253,7 +271,7 @@ fn keep_best(scene: &mut Scene, kept: &[Tried], most: usize) {
 
 /// For each region of `fine`, the region of `coarse` that holds it (`coarse` is a cut of a
 /// hierarchy over `fine`, so each fine region lies in one).
-fn region_map(fine: &Segmentation, coarse: &Segmentation) -> Vec<u32> {
+pub(crate) fn region_map(fine: &Segmentation, coarse: &Segmentation) -> Vec<u32> {
     let mut map = vec![0; fine.regions.len()];
     for (&f, &c) in fine.labels.iter().zip(&coarse.labels) {
         map[f as usize] = c;

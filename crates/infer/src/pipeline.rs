@@ -21,7 +21,7 @@ use crate::coarse::{CoarseBudget, Trade, draw_coarse};
 use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
 use crate::paper::draw_paper;
-use crate::refine::{RefineTally, draw_refinement};
+use crate::refine::{RefineTally, draw_refinement, draw_refinement_traded};
 use crate::scene::{Scene, StageCounts};
 use crate::segmentation::{AutoBudget, Segmented, auto_budget, hierarchy, max_regions};
 
@@ -124,9 +124,9 @@ pub struct Job {
     /// How many paths.
     pub paths: PathBudget,
     /// Number of superpixels, below the path count (a fixed budget only). By default as many
-    /// as the budget holds beside E_r's share, and E_c's paths take the place of regions
-    /// where they draw better than the regions would ([`crate::coarse::Trade`]); a given count
-    /// is kept, and E_c draws only with what it leaves. Lowered to one per
+    /// as the budget holds beside E_r's share, and E_c's and E_r's paths take the place of
+    /// regions where they draw better than the regions would ([`crate::coarse::Trade`]); a given count
+    /// is kept, and E_c and E_r draw only with what it leaves. Lowered to one per
     /// [`crate::segmentation::PIXELS_PER_REGION`] pixels, with a [`Warning`].
     pub regions: Option<usize>,
     /// How the budget is split; by default the operating point stored with the models.
@@ -328,8 +328,8 @@ pub fn run_with_progress(
             if let Some(regions) = job.regions.filter(|&r| r == 0 || r >= paths) {
                 return Err(VectorizeError::Regions { regions, paths });
             }
-            // Unless told how many, the regions fill what E_r leaves, and E_c buys its paths
-            // from them (`coarse::Trade`).
+            // Unless told how many, the regions fill what E_r's share leaves, and E_c and E_r buy
+            // their paths from them (`coarse::Trade`).
             let asked = job.regions.unwrap_or_else(|| point.filling_regions(paths)).clamp(1, paths - 1);
             // Only a count the user gave is said to be lowered: the default fills the budget.
             if asked > most && job.regions.is_some() {
@@ -365,7 +365,12 @@ pub fn run_with_progress(
 
     let clock = Instant::now();
     let refinement = match &models.refine {
-        Some(refine) => draw_refinement(refine, &models.config, &mut scene, paths, job.batch, device),
+        Some(refine) => match trade {
+            Some(trade) => {
+                draw_refinement_traded(refine, &models.config, &mut scene, paths, trade, job.batch, device)
+            }
+            None => draw_refinement(refine, &models.config, &mut scene, paths, job.batch, device),
+        },
         None => RefineTally::default(),
     };
     let refine = clock.elapsed().as_secs_f64();

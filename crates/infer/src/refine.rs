@@ -1,11 +1,17 @@
 //! The refinement stage: E_r adds paths to the regions drawn worst, and a path stays only if it
-//! lowers the error of the box it was drawn in.
+//! lowers the error of the box it was drawn in. It fills what the budget leaves
+//! ([`draw_refinement`]) or, by default, also buys paths with regions where they pay
+//! ([`draw_refinement_traded`]).
+
+use std::sync::Arc;
 
 use burn::tensor::Device;
 use model::{CropBatch, ModelConfig, RefineModel, canvas_cells, crop_to_image};
+use raster::Shape;
 use serde::Serialize;
 use superpixel::{RegionCrop, worst_first};
 
+use crate::coarse::{Trade, draw_on_cut, region_map, worth_their_regions};
 use crate::scene::{Origin, Placed, Scene, Scope};
 
 /// What E_r did in a drawing: how many paths it proposed, how many lowered the error and were
@@ -37,52 +43,205 @@ pub fn draw_refinement(
     device: &Device,
 ) -> RefineTally {
     let before = scene.total_error();
-    let mut tally = RefineTally::default();
-    let regions = scene.segmentation().regions.len();
-    let mut exhausted = vec![false; regions];
-    let mut crops: Vec<Option<RegionCrop>> = vec![None; regions];
-    let (width, height) = scene.target().dimensions();
-    'rounds: while scene.len() < budget {
-        let remaining = budget - scene.len();
-        let errors = scene.region_errors();
-        let mut worst: Vec<u32> =
-            (0..regions as u32).filter(|&r| !exhausted[r as usize] && errors[r as usize] > 0.0).collect();
-        worst_first(&mut worst, &errors);
-        worst.truncate(remaining.div_ceil(config.refine_paths).min(batch.max(1)));
-        if worst.is_empty() {
+    let mut rounds = Rounds::new(scene);
+    while scene.len() < budget {
+        let regions = (budget - scene.len()).div_ceil(config.refine_paths).min(batch.max(1));
+        if rounds.next(refine, config, scene, regions, budget, device) == 0 {
             break;
         }
+    }
+    rounds.tally(scene, before)
+}
+
+/// [`draw_refinement`] with E_r's paths also bought with regions, as E_c's are
+/// ([`crate::coarse::Trade`]): the paths the budget leaves room for are free; past those each
+/// path kept takes the place of a region of `scene`'s segmentation (a cut of the trade's merge
+/// tree), merged away where merging costs least. E_r proposes for the regions drawn worst,
+/// [`FIRST_PROBE`] in the first round (or as many as the free paths need) and twice as many in
+/// each after, up to `batch`, until it has filled the free paths and a round buys paths (worth their
+/// regions) for fewer than half of the regions it asked about; it never buys more than half
+/// the regions (the drawing stays the regions'). The `k`
+/// paths that took away the most error are kept, for the `k` at which their gain less the cost
+/// of the merges they need ([`superpixel::Hierarchy::flat_error`]) is largest; when that needs
+/// merges the scene is drawn again on the coarser cut (fallback, E_c's paths, then E_r's on
+/// top, each recoloured and judged again), and kept only if it beats the drawing with the free
+/// paths alone.
+#[allow(clippy::too_many_arguments)]
+pub fn draw_refinement_traded(
+    refine: &RefineModel,
+    config: &ModelConfig,
+    scene: &mut Scene,
+    budget: usize,
+    trade: Trade<'_>,
+    batch: usize,
+    device: &Device,
+) -> RefineTally {
+    let before = scene.total_error();
+    let start = scene.len();
+    let free = budget.saturating_sub(start);
+    let regions = scene.segmentation().regions.len();
+    let hierarchy = trade.hierarchy;
+    let most_merges = (regions / 2).min(regions.saturating_sub(hierarchy.fewest_regions()));
+    let price = |k: usize| match k.saturating_sub(free) {
+        0 => 0.0,
+        merges => hierarchy.flat_error(regions - merges) - hierarchy.flat_error(regions),
+    };
+    let mut rounds = Rounds::new(scene);
+    let mut bought = 0;
+    // The first round asks about as many regions as the free paths need, or FIRST_PROBE, and
+    // each round after twice as many as the one before, up to `batch`: where E_r buys nothing
+    // (data/eval's photos, small budgets) that probe is all it costs.
+    let batch = batch.max(1);
+    let mut count = free.div_ceil(config.refine_paths).max(FIRST_PROBE).min(batch);
+    loop {
+        let asked = rounds.next(refine, config, scene, count, start + free + most_merges, device);
+        count = (2 * count).min(batch);
+        let kept = rounds.gains.len();
+        if asked == 0 || kept == free + most_merges {
+            break;
+        }
+        let before = std::mem::replace(&mut bought, worth_their_regions(&rounds.by_gain(), price));
+        if kept >= free && 2 * bought.saturating_sub(before) < asked {
+            break;
+        }
+    }
+    let ranked = rounds.ranked();
+    let gains: Vec<f64> = ranked.iter().map(|&i| rounds.gains[i]).collect();
+    let bought = worth_their_regions(&gains, price);
+    let mut chosen = vec![false; rounds.gains.len()];
+    ranked[..bought].iter().for_each(|&i| chosen[i] = true);
+    let merges = bought.saturating_sub(free);
+    let merged = (merges > 0).then(|| {
+        let target = scene.target().clone();
+        let fine = scene.segmentation().clone();
+        let cut = Arc::new(hierarchy.cut(&target, regions - merges));
+        let fine_to_cut = region_map(&fine, &cut);
+        let coarse = scene.paths()[..start].iter().filter(|placed| placed.origin == Origin::Coarse);
+        let coarse = coarse.filter_map(|placed| match (&placed.shape, placed.region) {
+            (Shape::Path(path), Some(region)) => Some((region, *path)),
+            _ => None,
+        });
+        let mut merged = draw_on_cut(&target, &fine, cut, trade.tolerance, coarse);
+        for (placed, _) in scene.paths()[start..].iter().zip(&chosen).filter(|(_, chosen)| **chosen) {
+            let Shape::Path(path) = &placed.shape else { continue };
+            let path = merged.fit_colour(path, Scope::All).unwrap_or(*path);
+            let region = placed.region.map(|region| fine_to_cut[region as usize]);
+            merged.try_push(Placed { shape: path.into(), region, origin: Origin::Refine }, Scope::All);
+        }
+        merged.repaint();
+        merged
+    });
+    // The free paths alone: the best `free` of those kept, on the drawing as it is.
+    let mut best_free = vec![false; chosen.len()];
+    ranked.iter().take(free).for_each(|&i| best_free[i] = true);
+    scene.retain(|index, _| index < start || best_free[index - start]);
+    if let Some(merged) = merged
+        && merged.len() <= budget
+        && merged.total_error() < scene.total_error()
+    {
+        *scene = merged;
+    }
+    rounds.tally(scene, before)
+}
+
+/// How many regions E_r's trade asks about first when no free path needs more: a round of E_r
+/// costs about 6 ms a region on a 2-core CPU, and on data/eval's photos, or at budgets of a
+/// few hundred paths, it buys nothing (a round of 8 there cost as much as the rest of B).
+const FIRST_PROBE: usize = 2;
+
+/// E_r's rounds over one drawing: which regions are done with, their crops, and what it proposed
+/// and kept.
+struct Rounds {
+    /// Regions none of whose proposals helped: not proposed for again.
+    exhausted: Vec<bool>,
+    /// Each region's crop, cut once.
+    crops: Vec<Option<RegionCrop>>,
+    /// Paths proposed.
+    proposed: usize,
+    /// The error each path kept took away, in the order kept (they are the scene's last).
+    gains: Vec<f64>,
+}
+
+impl Rounds {
+    fn new(scene: &Scene) -> Self {
+        let regions = scene.segmentation().regions.len();
+        Self { exhausted: vec![false; regions], crops: vec![None; regions], proposed: 0, gains: Vec::new() }
+    }
+
+    /// One round: ranks the regions by squared error, gives E_r (target, canvas) crops of the
+    /// worst `count` not exhausted, and tries each proposed path over the current drawing in
+    /// its least-squares colour ([`Scene::fit_colour`]), keeping those that lower the squared
+    /// error of their box, until the scene holds `limit` paths. Returns how many regions it
+    /// proposed for (0: none was left, or the scene was full).
+    fn next(
+        &mut self,
+        refine: &RefineModel,
+        config: &ModelConfig,
+        scene: &mut Scene,
+        count: usize,
+        limit: usize,
+        device: &Device,
+    ) -> usize {
+        if scene.len() >= limit {
+            return 0;
+        }
+        let errors = scene.region_errors();
+        let mut worst: Vec<u32> = (0..errors.len() as u32)
+            .filter(|&r| !self.exhausted[r as usize] && errors[r as usize] > 0.0)
+            .collect();
+        worst_first(&mut worst, &errors);
+        worst.truncate(count);
         for &r in &worst {
-            if crops[r as usize].is_none() {
-                crops[r as usize] = Some(scene.region_crop(config, r));
+            if self.crops[r as usize].is_none() {
+                self.crops[r as usize] = Some(scene.region_crop(config, r));
             }
         }
         let chosen: Vec<&RegionCrop> =
-            worst.iter().map(|&r| crops[r as usize].as_ref().expect("cut above")).collect();
+            worst.iter().map(|&r| self.crops[r as usize].as_ref().expect("cut above")).collect();
+        if chosen.is_empty() {
+            return 0;
+        }
+        let (width, height) = scene.target().dimensions();
         let targets = CropBatch::new(chosen.iter().copied(), device);
         let canvas = canvas_cells(&scene.canvas_image(), chosen.iter().copied(), device);
         let canvas = targets.masked_canvas(canvas, &config.input);
         let proposals = refine.forward(targets.pixels, canvas).to_scenes();
-        for ((&region, crop), paths) in worst.iter().zip(chosen).zip(proposals) {
+        for ((&region, crop), paths) in worst.iter().zip(&chosen).zip(proposals) {
             let mut kept = 0;
             for path in paths {
-                if scene.len() == budget {
-                    break 'rounds;
+                if scene.len() >= limit {
+                    return worst.len();
                 }
-                tally.proposed += 1;
+                self.proposed += 1;
                 let path = crop_to_image(path, crop, width, height);
                 let path = scene.fit_colour(&path, Scope::All).unwrap_or(path);
                 let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Refine };
-                if scene.try_push(placed, Scope::All).is_some() {
+                if let Some(gain) = scene.try_push(placed, Scope::All) {
                     kept += 1;
-                    tally.kept += 1;
+                    self.gains.push(gain);
                 }
             }
-            exhausted[region as usize] |= kept == 0;
+            self.exhausted[region as usize] |= kept == 0;
         }
+        worst.len()
     }
-    if tally.kept > 0 {
-        tally.gain_db = 10.0 * (before / scene.total_error()).log10();
+
+    /// Indices into [`Rounds::gains`], largest gain first.
+    fn ranked(&self) -> Vec<usize> {
+        let mut ranked: Vec<usize> = (0..self.gains.len()).collect();
+        ranked.sort_by(|&a, &b| self.gains[b].total_cmp(&self.gains[a]));
+        ranked
     }
-    tally
+
+    /// The gains, largest first.
+    fn by_gain(&self) -> Vec<f64> {
+        self.ranked().into_iter().map(|i| self.gains[i]).collect()
+    }
+
+    /// What E_r did to `scene`, whose squared error was `before`.
+    fn tally(&self, scene: &Scene, before: f64) -> RefineTally {
+        let kept = scene.counts().refine;
+        let gain_db = if kept > 0 { 10.0 * (before / scene.total_error()).log10() } else { 0.0 };
+        RefineTally { proposed: self.proposed, kept, gain_db }
+    }
 }

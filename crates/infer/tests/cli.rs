@@ -39,7 +39,11 @@ fn writes_what_the_library_call_returns() {
         serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
     assert_eq!(report["input"], photo.to_str().unwrap());
     assert_eq!(report["paths"], outcome.report.paths);
-    assert_eq!(report["psnr"], outcome.report.psnr);
+    // Since E_r probes at every budget, the program's PSNR and this process's have differed in
+    // the last bit (27.82418387240484 against 27.824183872404838) with the same SVG; why is not
+    // known yet, so the figure is compared to a part in 10¹².
+    let psnr = report["psnr"].as_f64().unwrap();
+    assert!((psnr - outcome.report.psnr).abs() <= 1e-12 * psnr, "{psnr} against {}", outcome.report.psnr);
     assert_eq!(report["paths_by_stage"], serde_json::to_value(outcome.report.paths_by_stage).unwrap());
     assert!(report["seconds"]["total"].as_f64().unwrap() > 0.0);
 }

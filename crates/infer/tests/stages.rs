@@ -12,7 +12,7 @@ use infer::coarse::{CoarseBudget, Trade, draw_coarse};
 use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
 use infer::models::Models;
-use infer::refine::draw_refinement;
+use infer::refine::{draw_refinement, draw_refinement_traded};
 use infer::scene::{Origin, Scene};
 use infer::segmentation::Segmented;
 use rand::SeedableRng;
@@ -94,16 +94,18 @@ fn blobs(seed: u64) -> Rgb32FImage {
     image::DynamicImage::ImageRgb8(raster::render_exact(&scene, 96, 96, [1.0; 3])).to_rgb32f()
 }
 
-/// Bought with regions, E_c's paths never draw worse than the regions they take the place of:
-/// the scene is, or beats, the fallback drawing of the whole segmentation, and each path kept
-/// is one region fewer.
+/// Bought with regions, E_c's and then E_r's paths never draw worse than the regions they take
+/// the place of: the scene is, or beats, the fallback drawing of the whole segmentation (and
+/// then the drawing E_c left), the budget holds, each path kept past the free ones is one
+/// region fewer, and the canvas is the rendering of the paths.
 #[test]
 fn paths_bought_with_regions_draw_better_than_the_regions() {
     let device = Device::flex();
-    let models = Models::bundled(false, &device).unwrap();
+    let models = Models::bundled(true, &device).unwrap();
+    let refine = models.refine.as_ref().unwrap();
     // Fine regions: on these pictures E_c buys a few paths at 161 paths and tens at 241.
     let total = 241;
-    let mut bought = 0;
+    let (mut bought, mut merged_for_refine) = (0, 0);
     for image in [blobs(0), blobs(1), images().remove(0)] {
         let image = Arc::new(image);
         let tree = infer::segmentation::hierarchy(&image, total - 1, 30.0).unwrap();
@@ -131,8 +133,26 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
         let rendered = raster::render_exact(&scene.scene(), 96, image.height(), [1.0; 3]);
         assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths");
         bought += coarse;
+
+        let (before, regions, free) = (drawn, scene.segmentation().regions.len(), total - scene.len());
+        let tally = draw_refinement_traded(refine, &models.config, &mut scene, total, trade, 16, &device);
+        let after = psnr(&scene.canvas_image(), &image);
+        let refined = scene.counts().refine;
+        assert!(after >= before, "{after} dB with {refined} E_r paths < {before} dB before them");
+        assert!(scene.len() <= total, "{} paths for a budget of {total}", scene.len());
+        assert_eq!(tally.kept, refined);
+        let left = scene.segmentation().regions.len();
+        assert!(
+            left + refined <= regions + free,
+            "{refined} E_r paths past {free} free took {} regions",
+            regions - left
+        );
+        let rendered = raster::render_exact(&scene.scene(), 96, image.height(), [1.0; 3]);
+        assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths");
+        merged_for_refine += regions - left;
     }
-    assert!(bought > 0, "no image bought a path: the trade was not exercised");
+    assert!(bought > 0, "no image bought an E_c path: the trade was not exercised");
+    assert!(merged_for_refine > 0, "E_r bought no path with a region: its trade was not exercised");
 }
 
 #[test]
