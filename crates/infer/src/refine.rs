@@ -144,9 +144,10 @@ pub fn draw_refinement_traded(
     rounds.tally(scene, before)
 }
 
-/// How many regions E_r's trade asks about first when no free path needs more: a round of E_r
-/// costs about 6 ms a region on a 2-core CPU, and on data/eval's photos, or at budgets of a
-/// few hundred paths, it buys nothing (a round of 8 there cost as much as the rest of B).
+/// How many regions E_r's trade asks about first when no free path needs more: on data/eval's
+/// photos, and at small budgets, it buys nothing, and on a 2-core CPU a first round of 8
+/// regions cost 0.09 s a photo there where a probe of 2 costs 0.03 s (E_r's pass has a fixed
+/// cost of about 20 ms, then about 5 ms a region).
 const FIRST_PROBE: usize = 2;
 
 /// E_r's rounds over one drawing: which regions are done with, their crops, and what it proposed
