@@ -106,8 +106,7 @@ pub fn draw_refinement_traded(
         }
     }
     let ranked = rounds.ranked();
-    let gains: Vec<f64> = ranked.iter().map(|&i| rounds.gains[i]).collect();
-    let bought = worth_their_regions(&gains, price);
+    let bought = worth_their_regions(&rounds.by_gain(), price);
     let mut chosen = vec![false; rounds.gains.len()];
     ranked[..bought].iter().for_each(|&i| chosen[i] = true);
     let merges = bought.saturating_sub(free);
