@@ -17,7 +17,7 @@ use raster::{SvgError, SvgOptions, to_svg_with};
 use serde::Serialize;
 use superpixel::SlicError;
 
-use crate::coarse::{CoarseBudget, Trade, draw_coarse};
+use crate::coarse::{CoarseBudget, Pricing, Trade, draw_coarse};
 use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
 use crate::paper::draw_paper;
@@ -350,11 +350,12 @@ pub fn run_with_progress(
     // The stages share one copy of the image and of its regions.
     let target = Arc::new(target.clone());
     let Segmented { hierarchy, segmentation, fallback } = Segmented::new(&target, tree, regions, tolerance);
+    let pricing = Pricing::for_drawing(hierarchy.flat_error(segmentation.regions.len()), fallback.error);
     let mut scene = Scene::new(target, segmentation);
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let trade = job.regions.is_none().then_some(Trade { hierarchy: &hierarchy, tolerance });
+    let trade = job.regions.is_none().then_some(Trade { hierarchy: &hierarchy, tolerance, pricing });
     let budget = CoarseBudget {
         paths: point.coarse_paths(paths),
         total: paths - point.reserved_for_refine(paths),

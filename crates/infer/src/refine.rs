@@ -11,7 +11,7 @@ use raster::Shape;
 use serde::Serialize;
 use superpixel::{RegionCrop, worst_first};
 
-use crate::coarse::{Trade, draw_on_cut, region_map, worth_their_regions};
+use crate::coarse::{MergePrices, Trade, draw_on_cut, region_map, worth_their_regions};
 use crate::scene::{Origin, Placed, Scene, Scope};
 
 /// What E_r did in a drawing: how many paths it proposed, how many lowered the error and were
@@ -62,10 +62,11 @@ pub fn draw_refinement(
 /// regions) for fewer than half of the regions it asked about; it never buys more than half
 /// the regions (the drawing stays the regions'). The `k`
 /// paths that took away the most error are kept, for the `k` at which their gain less the cost
-/// of the merges they need ([`superpixel::Hierarchy::flat_error`]) is largest; when that needs
-/// merges the scene is drawn again on the coarser cut (fallback, E_c's paths, then E_r's on
-/// top, each recoloured and judged again), and kept only if it beats the drawing with the free
-/// paths alone.
+/// of the merges that free their paths ([`MergePrices`]: Ward's criterion or the cuts drawn, as
+/// the trade's [`crate::coarse::Pricing`] says) is largest; when that needs merges the scene is drawn again on the coarser cut (fallback, E_c's
+/// paths, then as many of E_r's as it leaves room for on top, largest gain first, each
+/// recoloured and judged again), and kept only if it beats the drawing with the free paths
+/// alone.
 #[allow(clippy::too_many_arguments)]
 pub fn draw_refinement_traded(
     refine: &RefineModel,
@@ -79,12 +80,19 @@ pub fn draw_refinement_traded(
     let before = scene.total_error();
     let start = scene.len();
     let free = budget.saturating_sub(start);
-    let regions = scene.segmentation().regions.len();
-    let hierarchy = trade.hierarchy;
-    let most_merges = (regions / 2).min(regions.saturating_sub(hierarchy.fewest_regions()));
-    let price = |k: usize| match k.saturating_sub(free) {
-        0 => 0.0,
-        merges => hierarchy.flat_error(regions - merges) - hierarchy.flat_error(regions),
+    let (target, fine) = (scene.target().clone(), scene.segmentation().clone());
+    let regions = fine.regions.len();
+    let most_merges = (regions / 2).min(regions.saturating_sub(trade.hierarchy.fewest_regions()));
+    // Priced once E_r keeps more paths than are free.
+    let mut prices: Option<MergePrices> = None;
+    let mut worth = |gains: &[f64]| {
+        if gains.len() <= free {
+            return gains.len();
+        }
+        let prices = prices.get_or_insert_with(|| MergePrices::new(&target, &fine, trade, most_merges));
+        prices.measure_to_free(&gains[free..]);
+        let price = |k: usize| prices.to_free(k.saturating_sub(free)).map_or(f64::INFINITY, |(cost, _)| cost);
+        worth_their_regions(gains, price)
     };
     let mut rounds = Rounds::new(scene);
     let mut bought = 0;
@@ -100,27 +108,29 @@ pub fn draw_refinement_traded(
         if asked == 0 || kept == free + most_merges {
             break;
         }
-        let before = std::mem::replace(&mut bought, worth_their_regions(&rounds.by_gain(), price));
+        let before = std::mem::replace(&mut bought, worth(&rounds.by_gain()));
         if kept >= free && 2 * bought.saturating_sub(before) < asked {
             break;
         }
     }
     let ranked = rounds.ranked();
-    let bought = worth_their_regions(&rounds.by_gain(), price);
-    let mut chosen = vec![false; rounds.gains.len()];
-    ranked[..bought].iter().for_each(|&i| chosen[i] = true);
-    let merges = bought.saturating_sub(free);
+    let bought = worth(&rounds.by_gain());
+    let merges = match (&prices, bought.checked_sub(free)) {
+        (Some(prices), Some(paths)) => prices.to_free(paths).map_or(0, |(_, merges)| merges),
+        _ => 0,
+    };
     let merged = (merges > 0).then(|| {
-        let target = scene.target().clone();
-        let fine = scene.segmentation().clone();
-        let cut = Arc::new(hierarchy.cut(&target, regions - merges));
+        let cut = Arc::new(trade.hierarchy.cut(&target, regions - merges));
         let fine_to_cut = region_map(&fine, &cut);
         let coarse = scene.paths()[..start].iter().filter(|placed| placed.origin == Origin::Coarse);
         let coarse = coarse.filter_map(|placed| match (&placed.shape, placed.region) {
             (Shape::Path(path), Some(region)) => Some((region, *path)),
             _ => None,
         });
-        let mut merged = draw_on_cut(&target, &fine, cut, trade.tolerance, coarse);
+        let (mut merged, _) = draw_on_cut(&target, &fine, cut, trade.tolerance, coarse);
+        // As many of E_r's paths as the merged drawing leaves room for, the largest gains.
+        let mut chosen = vec![false; rounds.gains.len()];
+        ranked.iter().take(budget.saturating_sub(merged.len())).for_each(|&i| chosen[i] = true);
         for (placed, _) in scene.paths()[start..].iter().zip(&chosen).filter(|(_, chosen)| **chosen) {
             let Shape::Path(path) = &placed.shape else { continue };
             let path = merged.fit_colour(path, Scope::All).unwrap_or(*path);
@@ -131,7 +141,7 @@ pub fn draw_refinement_traded(
         merged
     });
     // The free paths alone: the best `free` of those kept, on the drawing as it is.
-    let mut best_free = vec![false; chosen.len()];
+    let mut best_free = vec![false; rounds.gains.len()];
     ranked.iter().take(free).for_each(|&i| best_free[i] = true);
     scene.retain(|index, _| index < start || best_free[index - start]);
     if let Some(merged) = merged

@@ -8,7 +8,7 @@ use burn::tensor::Device;
 use common::decode::load;
 use common::psnr;
 use image::{Rgb, Rgb32FImage};
-use infer::coarse::{CoarseBudget, Trade, draw_coarse};
+use infer::coarse::{CoarseBudget, Pricing, Trade, draw_coarse};
 use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
 use infer::models::Models;
@@ -96,8 +96,9 @@ fn blobs(seed: u64) -> Rgb32FImage {
 
 /// Bought with regions, E_c's and then E_r's paths never draw worse than the regions they take
 /// the place of: the scene is, or beats, the fallback drawing of the whole segmentation (and
-/// then the drawing E_c left), the budget holds, each path kept past the free ones is one
-/// region fewer, and the canvas is the rendering of the paths.
+/// then the drawing E_c left), the budget holds, paths are bought only where regions were merged
+/// away or paths were free, and the canvas is the rendering of the paths; with merges priced
+/// either way.
 #[test]
 fn paths_bought_with_regions_draw_better_than_the_regions() {
     let device = Device::flex();
@@ -105,54 +106,68 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
     let refine = models.refine.as_ref().unwrap();
     // Fine regions: on these pictures E_c buys a few paths at 161 paths and tens at 241.
     let total = 241;
-    let (mut bought, mut merged_for_refine) = (0, 0);
-    for image in [blobs(0), blobs(1), images().remove(0)] {
-        let image = Arc::new(image);
-        let tree = infer::segmentation::hierarchy(&image, total - 1, 30.0).unwrap();
-        let Segmented { hierarchy, segmentation, fallback: drawing } =
-            Segmented::new(&image, tree, total - 1, None);
-        let regions = segmentation.regions.len();
-        let alone = psnr(
-            &Scene::drawn(image.clone(), segmentation.clone(), drawing.placed(), drawing.canvas.clone())
-                .canvas_image(),
-            &image,
-        );
-        let mut scene = Scene::new(image.clone(), segmentation);
-        let trade = Trade { hierarchy: &hierarchy, tolerance: None };
-        let budget = CoarseBudget { paths: 48, total, trade: Some(trade) };
-        draw_coarse(&models.coarse, &models.config, &mut scene, drawing, budget, 16, &device);
-        let drawn = psnr(&scene.canvas_image(), &image);
-        let coarse = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
-        assert!(drawn >= alone, "{drawn} dB with {coarse} E_c paths < {alone} dB for the regions alone");
-        assert!(scene.len() <= total && coarse <= 48, "{} paths, {coarse} of E_c", scene.len());
-        assert!(
-            scene.segmentation().regions.len() + coarse <= regions,
-            "each E_c path took a region's place"
-        );
-        // The canvas is the drawing of the scene's paths, E_c's among the regions.
-        let rendered = raster::render_exact(&scene.scene(), 96, image.height(), [1.0; 3]);
-        assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths");
-        bought += coarse;
+    for pricing in [Pricing::Flat, Pricing::Drawn] {
+        let (mut bought, mut merged_for_refine) = (0, 0);
+        for image in [blobs(0), blobs(1), images().remove(0)] {
+            let image = Arc::new(image);
+            let tree = infer::segmentation::hierarchy(&image, total - 1, 30.0).unwrap();
+            let Segmented { hierarchy, segmentation, fallback: drawing } =
+                Segmented::new(&image, tree, total - 1, None);
+            let regions = segmentation.regions.len();
+            let alone = psnr(
+                &Scene::drawn(image.clone(), segmentation.clone(), drawing.placed(), drawing.canvas.clone())
+                    .canvas_image(),
+                &image,
+            );
+            let mut scene = Scene::new(image.clone(), segmentation);
+            let trade = Trade { hierarchy: &hierarchy, tolerance: None, pricing };
+            let budget = CoarseBudget { paths: 48, total, trade: Some(trade) };
+            draw_coarse(&models.coarse, &models.config, &mut scene, drawing, budget, 16, &device);
+            let drawn = psnr(&scene.canvas_image(), &image);
+            let coarse = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
+            assert!(
+                drawn >= alone,
+                "{pricing:?}: {drawn} dB with {coarse} E_c paths < {alone} dB for the regions alone"
+            );
+            assert!(
+                scene.len() <= total && coarse <= 48,
+                "{pricing:?}: {} paths, {coarse} of E_c",
+                scene.len()
+            );
+            assert!(
+                coarse == 0 || scene.segmentation().regions.len() < regions,
+                "{pricing:?}: {coarse} E_c paths bought without a merge"
+            );
+            // The canvas is the drawing of the scene's paths, E_c's among the regions.
+            let rendered = raster::render_exact(&scene.scene(), 96, image.height(), [1.0; 3]);
+            assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths");
+            bought += coarse;
 
-        let (before, regions, free) = (drawn, scene.segmentation().regions.len(), total - scene.len());
-        let tally = draw_refinement_traded(refine, &models.config, &mut scene, total, trade, 16, &device);
-        let after = psnr(&scene.canvas_image(), &image);
-        let refined = scene.counts().refine;
-        assert!(after >= before, "{after} dB with {refined} E_r paths < {before} dB before them");
-        assert!(scene.len() <= total, "{} paths for a budget of {total}", scene.len());
-        assert_eq!(tally.kept, refined);
-        let left = scene.segmentation().regions.len();
+            let (before, regions, free) = (drawn, scene.segmentation().regions.len(), total - scene.len());
+            let tally = draw_refinement_traded(refine, &models.config, &mut scene, total, trade, 16, &device);
+            let after = psnr(&scene.canvas_image(), &image);
+            let refined = scene.counts().refine;
+            assert!(
+                after >= before,
+                "{pricing:?}: {after} dB with {refined} E_r paths < {before} dB before them"
+            );
+            assert!(scene.len() <= total, "{pricing:?}: {} paths for a budget of {total}", scene.len());
+            assert_eq!(tally.kept, refined);
+            let left = scene.segmentation().regions.len();
+            assert!(
+                refined <= free || left < regions,
+                "{pricing:?}: {refined} E_r paths past {free} free without a merge"
+            );
+            let rendered = raster::render_exact(&scene.scene(), 96, image.height(), [1.0; 3]);
+            assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths");
+            merged_for_refine += regions - left;
+        }
+        assert!(bought > 0, "{pricing:?}: no image bought an E_c path: the trade was not exercised");
         assert!(
-            left + refined <= regions + free,
-            "{refined} E_r paths past {free} free took {} regions",
-            regions - left
+            merged_for_refine > 0,
+            "{pricing:?}: E_r bought no path with a region: its trade was not exercised"
         );
-        let rendered = raster::render_exact(&scene.scene(), 96, image.height(), [1.0; 3]);
-        assert_eq!(scene.canvas_rgb8(), rendered, "the canvas is the rendering of the paths");
-        merged_for_refine += regions - left;
     }
-    assert!(bought > 0, "no image bought an E_c path: the trade was not exercised");
-    assert!(merged_for_refine > 0, "E_r bought no path with a region: its trade was not exercised");
 }
 
 #[test]
