@@ -4,6 +4,7 @@
 //! regions.
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use burn::tensor::Device;
 use image::Rgb32FImage;
@@ -94,6 +95,9 @@ const FLAT_SHARE: f64 = 0.85;
 /// than its prices read), and kept only if it beats the fallback drawing of the full
 /// segmentation.
 ///
+/// Returns the seconds E_c's forward passes took (cropping its regions and reading out its
+/// paths included).
+///
 /// # Panics
 /// If the scene already holds paths.
 pub fn draw_coarse(
@@ -104,7 +108,7 @@ pub fn draw_coarse(
     budget: CoarseBudget,
     batch: usize,
     device: &Device,
-) {
+) -> f64 {
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
     let (target, segmentation) = (scene.target().clone(), scene.segmentation().clone());
     let spare = budget.paths.min(budget.total.saturating_sub(1 + fallback.order.len()));
@@ -114,11 +118,13 @@ pub fn draw_coarse(
     };
     if wanted == 0 {
         *scene = fallback_only(&target, &segmentation, fallback);
-        return;
+        return 0.0;
     }
     let chosen = worst_regions(scene, &fallback, wanted);
     let regions = segmentation.regions.len();
-    let propose_for = |asked: &[u32]| {
+    let mut network = 0.0;
+    let mut propose_for = |asked: &[u32]| {
+        let clock = Instant::now();
         let crops: Vec<RegionCrop> =
             asked.iter().map(|&r| config.region_crop(&segmentation, &target, r)).collect();
         let mut proposals = vec![Vec::new(); regions];
@@ -126,6 +132,7 @@ pub fn draw_coarse(
         {
             proposals[region as usize] = paths;
         }
+        network += clock.elapsed().as_secs_f64();
         proposals
     };
     let error = fallback.error;
@@ -137,7 +144,7 @@ pub fn draw_coarse(
         kept.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         keep_best(scene, &kept, spare);
         settle(scene, alone, error);
-        return;
+        return network;
     };
     let most = regions.saturating_sub(trade.hierarchy.fewest_regions());
     let mut prices = MergePrices::measured(&target, &segmentation, trade, most, (error, alone.len()));
@@ -163,7 +170,7 @@ pub fn draw_coarse(
     };
     if bought == 0 || merges == 0 {
         *scene = alone;
-        return;
+        return network;
     }
     let cut = Arc::new(trade.hierarchy.cut(&target, regions - merges));
     let mut bought: Vec<(usize, &Tried)> =
@@ -177,6 +184,7 @@ pub fn draw_coarse(
     drawn.sort_by(|a, b| b.gain.total_cmp(&a.gain));
     keep_best(scene, &drawn, drawn.len().saturating_sub(scene.len().saturating_sub(budget.total)));
     settle(scene, alone, error);
+    network
 }
 
 /// `target` drawn on `cut`, a cut of the merge tree `fine` is a finer cut of: the fallback

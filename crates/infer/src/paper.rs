@@ -10,6 +10,7 @@
 //! paths in E_c's painter's order) instead of dropping the last regions' paths wholesale.
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use burn::tensor::Device;
 use image::Rgb32FImage;
@@ -46,15 +47,15 @@ pub fn coarse_regions(paths: usize, width: u32, height: u32) -> usize {
 
 /// Draws `target` with at most `paths` paths the paper's way (see the module): the scene's
 /// segmentation is E_c's SLIC; E_r's paths, drawn for the regions of a second SLIC, belong to
-/// none of its regions. With the scene comes what E_r did (every path it appends is kept, and
-/// its gain may be negative).
+/// none of its regions. With the scene come what E_r did (every path it appends is kept, and
+/// its gain may be negative) and the seconds both networks' forward passes took.
 pub fn draw_paper(
     models: &Models,
     target: &Arc<Rgb32FImage>,
     paths: usize,
     batch: usize,
     device: &Device,
-) -> Result<(Scene, RefineTally), SlicError> {
+) -> Result<(Scene, RefineTally, f64), SlicError> {
     let (width, height) = target.dimensions();
     let segmentation = Arc::new(slic(target, &coarse_slic(coarse_regions(paths, width, height)))?);
     let config = &models.config;
@@ -63,9 +64,10 @@ pub fn draw_paper(
         .collect();
     let share = (paths - 1) / segmentation.regions.len();
     let mut drawn: Vec<Placed> = Vec::new();
-    for (region, proposed) in
-        propose(&models.coarse, &crops, (width, height), batch, device).into_iter().enumerate()
-    {
+    let clock = Instant::now();
+    let proposals = propose(&models.coarse, &crops, (width, height), batch, device);
+    let coarse_network = clock.elapsed().as_secs_f64();
+    for (region, proposed) in proposals.into_iter().enumerate() {
         drawn.extend(proposed.into_iter().take(share).map(|path| Placed {
             shape: path.into(),
             region: Some(region as u32),
@@ -86,26 +88,35 @@ pub fn draw_paper(
             let regions = remaining.div_ceil(config.refine_paths).min(max_regions(width, height));
             let second = slic(target, &refine_slic(regions))?;
             let before = scene.total_error();
-            tally.proposed = append_refinement(models, refine, &mut scene, &second, paths, batch, device);
+            let clock = Instant::now();
+            let proposed = propose_refinement(models, refine, &scene, &second, batch, device);
+            tally.network_seconds = clock.elapsed().as_secs_f64();
+            tally.proposed = proposed.len();
+            // Appended until the scene holds `paths` (a path that cannot be drawn is passed over).
+            for path in proposed {
+                if scene.len() == paths {
+                    break;
+                }
+                scene.push(Placed { shape: path.into(), region: None, origin: Origin::Refine });
+            }
             tally.kept = scene.counts().refine;
             tally.gain_db = 10.0 * (before / scene.total_error()).log10();
         }
     }
-    Ok((scene, tally))
+    let networks = coarse_network + tally.network_seconds;
+    Ok((scene, tally, networks))
 }
 
 /// E_r once over every region of `second` on `scene`'s canvas as the coarse stage left it
-/// (batched, `batch` crops a call), its visible paths appended in label order until the scene
-/// holds `paths`. Returns how many paths it proposed.
-fn append_refinement(
+/// (batched, `batch` crops a call): its visible paths, opaque, in label order.
+fn propose_refinement(
     models: &Models,
     refine: &model::RefineModel,
-    scene: &mut Scene,
+    scene: &Scene,
     second: &Segmentation,
-    paths: usize,
     batch: usize,
     device: &Device,
-) -> usize {
+) -> Vec<Path> {
     let (width, height) = scene.target().dimensions();
     let canvas = scene.canvas_image();
     let crops: Vec<RegionCrop> = (0..second.regions.len() as u32)
@@ -121,14 +132,7 @@ fn append_refinement(
                 .extend(visible.map(|path| crop_to_image(Path { alpha: 1.0, ..path }, crop, width, height)));
         }
     }
-    let count = proposed.len();
-    for path in proposed {
-        if scene.len() == paths {
-            break;
-        }
-        scene.push(Placed { shape: path.into(), region: None, origin: Origin::Refine });
-    }
-    count
+    proposed
 }
 
 #[cfg(test)]

@@ -234,6 +234,9 @@ pub struct Seconds {
     pub coarse: f64,
     /// E_r.
     pub refine: f64,
+    /// Of `coarse` and `refine`, E_c's and E_r's forward passes (cropping their regions and
+    /// reading out their paths included): what the method's networks cost beside the rest.
+    pub networks: f64,
     /// SuperSVG-F, when asked for.
     pub finetune: Option<f64>,
     /// Writing the SVG and measuring the drawing.
@@ -361,7 +364,8 @@ pub fn run_with_progress(
         total: paths - point.reserved_for_refine(paths),
         trade,
     };
-    draw_coarse(&models.coarse, &models.config, &mut scene, fallback, budget, job.batch, device);
+    let coarse_network =
+        draw_coarse(&models.coarse, &models.config, &mut scene, fallback, budget, job.batch, device);
     let coarse = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
@@ -376,7 +380,9 @@ pub fn run_with_progress(
     };
     let refine = clock.elapsed().as_secs_f64();
 
-    let seconds = Seconds { decode: image.seconds, superpixels, coarse, refine, ..Seconds::default() };
+    let networks = coarse_network + refinement.network_seconds;
+    let seconds =
+        Seconds { decode: image.seconds, superpixels, coarse, refine, networks, ..Seconds::default() };
     let drawn = Drawn {
         auto_budget: matches!(job.paths, PathBudget::Auto(_)),
         budget: paths,
@@ -402,11 +408,16 @@ fn run_paper(
         return Err(VectorizeError::PaperNeedsCount);
     }
     let clock = Instant::now();
-    let (scene, refinement) = draw_paper(models, &Arc::new(image.image.clone()), paths, job.batch, device)?;
+    let (scene, refinement, networks) =
+        draw_paper(models, &Arc::new(image.image.clone()), paths, job.batch, device)?;
     // Segmenting and both networks are one pass here; the stage split of the others does not
     // apply, so the time goes to `coarse`.
-    let seconds =
-        Seconds { decode: image.seconds, coarse: clock.elapsed().as_secs_f64(), ..Seconds::default() };
+    let seconds = Seconds {
+        decode: image.seconds,
+        coarse: clock.elapsed().as_secs_f64(),
+        networks,
+        ..Seconds::default()
+    };
     let drawn = Drawn { auto_budget: false, budget: paths, point: BudgetSplit::Paper, refinement, seconds };
     finish(scene, image, job, drawn, Vec::new(), on_step)
 }

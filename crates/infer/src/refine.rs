@@ -4,6 +4,7 @@
 //! ([`draw_refinement_traded`]).
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use burn::tensor::Device;
 use model::{CropBatch, ModelConfig, RefineModel, canvas_cells, crop_to_image};
@@ -26,6 +27,10 @@ pub struct RefineTally {
     /// How much they raised the drawing's PSNR (dB, whole image): 10·log₁₀ of the squared
     /// error before over after.
     pub gain_db: f64,
+    /// Seconds E_r's forward passes took (cropping the regions and reading out the paths
+    /// included); reported with the job's times, not here.
+    #[serde(skip)]
+    pub network_seconds: f64,
 }
 
 /// Rounds of E_r until `scene` holds `budget` paths or no region is left to improve: each round
@@ -170,12 +175,20 @@ struct Rounds {
     proposed: usize,
     /// The error each path kept took away, in the order kept (they are the scene's last).
     gains: Vec<f64>,
+    /// Seconds in E_r's forward passes.
+    network: f64,
 }
 
 impl Rounds {
     fn new(scene: &Scene) -> Self {
         let regions = scene.segmentation().regions.len();
-        Self { exhausted: vec![false; regions], crops: vec![None; regions], proposed: 0, gains: Vec::new() }
+        Self {
+            exhausted: vec![false; regions],
+            crops: vec![None; regions],
+            proposed: 0,
+            gains: Vec::new(),
+            network: 0.0,
+        }
     }
 
     /// One round: ranks the regions by squared error, gives E_r (target, canvas) crops of the
@@ -201,6 +214,7 @@ impl Rounds {
             .collect();
         worst_first(&mut worst, &errors);
         worst.truncate(count);
+        let clock = Instant::now();
         for &r in &worst {
             if self.crops[r as usize].is_none() {
                 self.crops[r as usize] = Some(scene.region_crop(config, r));
@@ -209,6 +223,7 @@ impl Rounds {
         let chosen: Vec<&RegionCrop> =
             worst.iter().map(|&r| self.crops[r as usize].as_ref().expect("cut above")).collect();
         if chosen.is_empty() {
+            self.network += clock.elapsed().as_secs_f64();
             return 0;
         }
         let (width, height) = scene.target().dimensions();
@@ -216,6 +231,7 @@ impl Rounds {
         let canvas = canvas_cells(&scene.canvas_image(), chosen.iter().copied(), device);
         let canvas = targets.masked_canvas(canvas, &config.input);
         let proposals = refine.forward(targets.pixels, canvas).to_scenes();
+        self.network += clock.elapsed().as_secs_f64();
         for ((&region, crop), paths) in worst.iter().zip(&chosen).zip(proposals) {
             let mut kept = 0;
             for path in paths {
@@ -252,6 +268,6 @@ impl Rounds {
     fn tally(&self, scene: &Scene, before: f64) -> RefineTally {
         let kept = scene.counts().refine;
         let gain_db = if kept > 0 { 10.0 * (before / scene.total_error()).log10() } else { 0.0 };
-        RefineTally { proposed: self.proposed, kept, gain_db }
+        RefineTally { proposed: self.proposed, kept, gain_db, network_seconds: self.network }
     }
 }

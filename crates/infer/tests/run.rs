@@ -61,6 +61,8 @@ fn stays_within_the_budget_and_reports_what_it_drew() {
         let seconds = report.seconds;
         let parts = seconds.decode + seconds.superpixels + seconds.coarse + seconds.refine + seconds.export;
         assert!((seconds.total - parts).abs() < 1e-9 && seconds.finetune.is_none());
+        // The networks' passes are part of the coarse and refinement stages' time.
+        assert!(seconds.networks > 0.0 && seconds.networks <= seconds.coarse + seconds.refine, "{seconds:?}");
     }
 }
 
