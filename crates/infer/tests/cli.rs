@@ -95,7 +95,7 @@ fn bad_inputs_fail_alone_with_clear_messages_and_no_partial_files() {
     assert_eq!(result.status.code(), Some(1));
     let stderr = text(&result.stderr);
     for name in &names[..4] {
-        assert!(stderr.contains(name), "no error names {name}: {stderr}");
+        assert_eq!(stderr.matches(name).count(), 1, "no error names {name}, or one names it twice: {stderr}");
         assert!(!out.join(Path::new(name).with_extension("svg")).exists(), "partial output for {name}");
     }
     assert!(stderr.contains("4 of 5 inputs failed"), "{stderr}");

@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, anyhow, bail};
 use clap::Parser;
-use common::decode::{LoadOptions, decode, open};
+use common::decode::{DecodeError, LoadOptions, decode, open};
 use common::progress::Bar;
 use common::write::{folder_of, probe_folder, write_atomic, write_png};
 use common::{Loaded, WORKING_SIZES};
@@ -499,7 +499,11 @@ fn run(args: &Args) -> anyhow::Result<usize> {
             Ok(line) if !args.quiet => bar.println(&line),
             Ok(_) => {}
             Err(message) => {
-                bar.println(&format!("error: {}: {message:#}", planned.source.name()));
+                // A decoding error names its input and says what is wrong in its own words.
+                bar.println(&match message.downcast_ref::<DecodeError>() {
+                    Some(decoding) => format!("error: {decoding}"),
+                    None => format!("error: {}: {message:#}", planned.source.name()),
+                });
                 failed += 1;
             }
         }
