@@ -51,7 +51,7 @@ pub enum Pricing {
     /// Ward's flat error of the merge tree ([`Hierarchy::flat_error`]): read for free, and
     /// close to what the drawing loses where the regions' colours vary within them (photos).
     Flat,
-    /// Measured by drawing the merged regions ([`MergePrices`]): where the drawing's error is
+    /// Measured by drawing the merged regions: where the drawing's error is
     /// mostly its traced outlines' (flat art), which Ward's criterion does not see.
     Drawn,
 }
@@ -69,7 +69,7 @@ impl Pricing {
 /// 2000 regions the share is 0.93–1.10 on the photos (where Ward's price and the drawn one
 /// agree within a few per cent) and 0.60–0.72 on the emoji (where Ward's price is a hundredth
 /// of the drawn one at 2000 paths, or twice it).
-const FLAT_SHARE: f64 = 0.85;
+pub const FLAT_SHARE: f64 = 0.85;
 
 /// Draws `scene` (which must be empty) from `fallback`, the fallback drawing of its
 /// segmentation: the background path, then for every region in painter's order its fallback
@@ -87,8 +87,8 @@ const FLAT_SHARE: f64 = 0.85;
 ///
 /// With a [`Trade`], the segmentation is meant to fill `total` on its own: the k paths kept
 /// are the k that took away the most error, for the k (up to `budget.paths`) at which their
-/// gain less the cost of the merges that free k paths ([`MergePrices`], by the trade's
-/// [`Pricing`]) is largest. E_c draws its regions in rounds, worst first:
+/// gain less the cost of the merges that free k paths (priced as the trade's [`Pricing`]
+/// says) is largest. E_c draws its regions in rounds, worst first:
 /// the first [`FIRST_ROUND`], then each round as many again as all before it, while it buys
 /// paths for at least half of the regions it has drawn. The scene is then drawn again on that
 /// cut with those paths (the ones that gained least dropped where the cut frees fewer paths
@@ -227,7 +227,7 @@ fn settle(scene: &mut Scene, alone: Scene, error: f64) {
 /// draws, about 9 ms of a 2-core CPU): on data/eval's photos it buys paths for fewer than half
 /// of them and stops there, while on the emoji, where it buys most, the rounds grow to every
 /// region it may draw.
-const FIRST_ROUND: usize = 8;
+pub const FIRST_ROUND: usize = 8;
 
 /// How many of the paths with `gains` (largest first) to buy when the k-th costs the merges
 /// that free k regions (`merged(k)`: the error they add): the k with the largest gain less

@@ -203,7 +203,7 @@ pub struct FallbackDrawing {
 
 impl FallbackDrawing {
     /// Traces every region of `segmentation` (in parallel; with a `tolerance`, as shared
-    /// boundaries fitted within it, see [`traced`]), fits the background of `image` under them,
+    /// boundaries fitted within it, as `traced` does), fits the background of `image` under them,
     /// renders the drawing and scores it.
     pub fn new(image: &Arc<Rgb32FImage>, segmentation: &Arc<Segmentation>, tolerance: Option<f32>) -> Self {
         let order = painter_order(segmentation);

@@ -67,8 +67,8 @@ pub fn draw_refinement(
 /// regions) for fewer than half of the regions it asked about; it never buys more than half
 /// the regions (the drawing stays the regions'). The `k`
 /// paths that took away the most error are kept, for the `k` at which their gain less the cost
-/// of the merges that free their paths ([`MergePrices`]: Ward's criterion or the cuts drawn, as
-/// the trade's [`crate::coarse::Pricing`] says) is largest; when that needs merges the scene is drawn again on the coarser cut (fallback, E_c's
+/// of the merges that free their paths (Ward's criterion or the cuts drawn, as the trade's
+/// [`crate::coarse::Pricing`] says) is largest; when that needs merges the scene is drawn again on the coarser cut (fallback, E_c's
 /// paths, then as many of E_r's as it leaves room for on top, largest gain first, each
 /// recoloured and judged again), and kept only if it beats the drawing with the free paths
 /// alone.
@@ -162,7 +162,7 @@ pub fn draw_refinement_traded(
 /// photos, and at small budgets, it buys nothing, and on a 2-core CPU a first round of 8
 /// regions cost 0.09 s a photo there where a probe of 2 costs 0.03 s (E_r's pass has a fixed
 /// cost of about 20 ms, then about 5 ms a region).
-const FIRST_PROBE: usize = 2;
+pub const FIRST_PROBE: usize = 2;
 
 /// E_r's rounds over one drawing: which regions are done with, their crops, and what it proposed
 /// and kept.

@@ -116,7 +116,7 @@ const AUTO_FIRST: usize = 8;
 /// a picture that climbs past it gets one more, made for the ceiling, for every larger rung.
 /// One tree for the ceiling alone would serve every rung, but pictures that stop early (flat
 /// art stops at tens of paths) would pay for an over-segmentation eight times 2000 paths.
-const AUTO_STAGE: usize = 256;
+pub const AUTO_STAGE: usize = 256;
 
 /// The budget [`auto_budget`] chose, and the merge tree to cut for it.
 pub struct AutoChoice {
