@@ -326,9 +326,9 @@ impl<'a> MergePrices<'a> {
         }
         if self.trade.pricing == Pricing::Flat {
             let hierarchy = self.trade.hierarchy;
-            let merges = paths.min(self.most);
-            let cost = hierarchy.flat_error(self.regions - merges) - hierarchy.flat_error(self.regions);
-            return (merges == paths).then_some((cost, merges));
+            let cost =
+                |merges| hierarchy.flat_error(self.regions - merges) - hierarchy.flat_error(self.regions);
+            return (paths <= self.most).then(|| (cost(paths), paths));
         }
         let above = self.points.iter().position(|&(_, _, freed)| freed >= paths)?;
         let ((m0, c0, f0), (m1, c1, f1)) = (self.points[above - 1], self.points[above]);

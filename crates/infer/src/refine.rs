@@ -68,10 +68,10 @@ pub fn draw_refinement(
 /// the regions (the drawing stays the regions'). The `k`
 /// paths that took away the most error are kept, for the `k` at which their gain less the cost
 /// of the merges that free their paths (Ward's criterion or the cuts drawn, as the trade's
-/// [`crate::coarse::Pricing`] says) is largest; when that needs merges the scene is drawn again on the coarser cut (fallback, E_c's
-/// paths, then as many of E_r's as it leaves room for on top, largest gain first, each
-/// recoloured and judged again), and kept only if it beats the drawing with the free paths
-/// alone.
+/// [`crate::coarse::Pricing`] says) is largest; when that needs merges the scene is drawn
+/// again on the coarser cut (fallback, E_c's paths, then as many of E_r's as it leaves room for
+/// on top, largest gain first, each recoloured and judged again), and kept only if it beats the
+/// drawing with the free paths alone.
 #[allow(clippy::too_many_arguments)]
 pub fn draw_refinement_traded(
     refine: &RefineModel,
