@@ -54,9 +54,20 @@ fn main() {
                 psnr += common::psnr_of_mse(segmentation.flat_error(image) / values);
             }
             let n = images.len() as f64;
-            let SegmentOptions { oversegment, iterations, compactness, sigma, keep_fragments, .. } = options;
-            let name =
-                format!("{oversegment},{iterations},{compactness},{sigma},{}", u8::from(*keep_fragments));
+            let SegmentOptions {
+                oversegment,
+                iterations,
+                compactness,
+                sigma,
+                keep_fragments,
+                flat_areas,
+                ..
+            } = options;
+            let areas = if *flat_areas { " from flat areas" } else { "" };
+            let name = format!(
+                "{oversegment},{iterations},{compactness},{sigma},{}{areas}",
+                u8::from(*keep_fragments)
+            );
             println!("{count} regions, recipe {name}: {:.3} dB, {:.1} ms", psnr / n, seconds / n * 1e3);
             rows.push(format!(
                 "{{\"regions\":{count},\"recipe\":\"{name}\",\"psnr\":{:.4},\"seconds\":{:.4}}}",
@@ -68,7 +79,8 @@ fn main() {
     println!("{{\"images\":{},\"rows\":[{}]}}", images.len(), rows.join(","));
 }
 
-/// `O,I,C,S,K` as a recipe (no compactness floor: merged freely, as `ward` merges).
+/// `O,I,C,S,K` as a recipe (no compactness floor: merged freely, as `ward` merges; always from
+/// SLIC, never from flat areas).
 fn recipe(text: &str) -> SegmentOptions {
     let values: Vec<f32> = numbers(text, "--recipe");
     let [oversegment, iterations, compactness, sigma, keep] = values[..] else {
@@ -81,6 +93,7 @@ fn recipe(text: &str) -> SegmentOptions {
         sigma,
         iterations: iterations as usize,
         keep_fragments: keep != 0.0,
+        flat_areas: false,
     }
 }
 

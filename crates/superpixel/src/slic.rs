@@ -87,6 +87,23 @@ pub struct Segmentation {
 }
 
 impl Segmentation {
+    /// Every 4-connected area of one exact colour of `image` a region (none for an empty
+    /// image): flat art's over-segmentation, whose regions have no error of their own and
+    /// whose anti-aliased edges are regions of their own.
+    pub fn flat_areas(image: &Rgb32FImage) -> Self {
+        let mut colours = std::collections::HashMap::new();
+        let labels: Vec<u32> = image
+            .pixels()
+            .map(|pixel| {
+                let next = colours.len() as u32;
+                *colours.entry(pixel.0.map(f32::to_bits)).or_insert(next)
+            })
+            .collect();
+        let (labels, count) =
+            enforce_connectivity(&labels, image.width() as usize, image.height() as usize, 0);
+        Self::from_labels(image, labels, count)
+    }
+
     /// Label of pixel (x, y).
     pub fn label(&self, x: u32, y: u32) -> u32 {
         self.labels[(y * self.width + x) as usize]
