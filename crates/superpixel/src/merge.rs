@@ -220,13 +220,10 @@ impl SegmentOptions {
         }
         let pixels = (image.width() as usize) * (image.height() as usize);
         let segments = self.segments_for(regions, pixels);
-        if self.flat_areas {
-            let areas = Segmentation::flat_areas(image);
-            if (1..=segments).contains(&areas.regions.len()) {
-                return Ok(areas);
-            }
+        match self.flat_areas.then(|| Segmentation::flat_areas(image, segments)).flatten() {
+            Some(areas) => Ok(areas),
+            None => slic(image, &self.slic_options(segments)),
         }
-        slic(image, &self.slic_options(segments))
     }
 }
 
@@ -699,13 +696,14 @@ mod tests {
     #[test]
     fn flat_areas_are_the_connected_areas_of_one_colour() {
         let image = flag();
-        let areas = Segmentation::flat_areas(&image);
+        let areas = Segmentation::flat_areas(&image, 5).unwrap();
         // White, the grey row, blue, and the two red spots (one colour, not touching).
         assert_eq!(areas.regions.len(), 5);
+        assert_eq!(Segmentation::flat_areas(&image, 4), None, "more areas than asked for");
         assert_ne!(areas.label(5, 5), areas.label(20, 25), "the two red spots apart");
         assert_eq!(areas.flat_error(&image), 0.0);
         assert_eq!(areas.label(0, 16), areas.label(31, 16));
-        assert!(Segmentation::flat_areas(&Rgb32FImage::new(0, 0)).regions.is_empty());
+        assert_eq!(Segmentation::flat_areas(&Rgb32FImage::new(0, 0), 5), None);
     }
 
     #[test]
@@ -715,7 +713,7 @@ mod tests {
         // on its own.
         let image = flag();
         let regions = ward.over_segment(&image, 4).unwrap();
-        assert_eq!(regions, Segmentation::flat_areas(&image));
+        assert_eq!(Some(regions), Segmentation::flat_areas(&image, 5));
         let slic_only = SegmentOptions { flat_areas: false, ..ward.clone() };
         assert!(slic_only.over_segment(&image, 4).unwrap().regions.len() > 5, "SLIC's segments");
         let merged = segment(&image, 4, &ward).unwrap();

@@ -87,21 +87,23 @@ pub struct Segmentation {
 }
 
 impl Segmentation {
-    /// Every 4-connected area of one exact colour of `image` a region (none for an empty
-    /// image): flat art's over-segmentation, whose regions have no error of their own and
-    /// whose anti-aliased edges are regions of their own.
-    pub fn flat_areas(image: &Rgb32FImage) -> Self {
+    /// Every 4-connected area of one exact colour of `image` a region, if there are at most
+    /// `most` of them (and any pixels): flat art's over-segmentation, whose regions have no
+    /// error of their own and whose anti-aliased edges are regions of their own. A photo, with
+    /// about as many colours as pixels, is given up within its first rows.
+    pub fn flat_areas(image: &Rgb32FImage, most: usize) -> Option<Self> {
         let mut colours = std::collections::HashMap::new();
-        let labels: Vec<u32> = image
-            .pixels()
-            .map(|pixel| {
-                let next = colours.len() as u32;
-                *colours.entry(pixel.0.map(f32::to_bits)).or_insert(next)
-            })
-            .collect();
+        let mut labels = Vec::with_capacity(image.len() / 3);
+        for pixel in image.pixels() {
+            let next = colours.len() as u32;
+            labels.push(*colours.entry(pixel.0.map(f32::to_bits)).or_insert(next));
+            if colours.len() > most {
+                return None;
+            }
+        }
         let (labels, count) =
             enforce_connectivity(&labels, image.width() as usize, image.height() as usize, 0);
-        Self::from_labels(image, labels, count)
+        (1..=most).contains(&count).then(|| Self::from_labels(image, labels, count))
     }
 
     /// Label of pixel (x, y).
