@@ -198,11 +198,9 @@ impl SegmentOptions {
     }
 
     /// How many segments SLIC is asked for, for `regions` regions of an image of `pixels`
-    /// pixels: `regions × oversegment`, at most one per [`MIN_SEGMENT_PIXELS`] pixels but at
-    /// least the regions, and at most the pixels.
+    /// pixels: `regions × oversegment`, at most the pixels.
     pub fn segments_for(&self, regions: usize, pixels: usize) -> usize {
-        let wanted = (regions as f64 * self.oversegment as f64).ceil() as usize;
-        wanted.min(pixels / MIN_SEGMENT_PIXELS).max(regions).clamp(1, pixels.max(1))
+        ((regions as f64 * self.oversegment as f64).ceil() as usize).clamp(1, pixels.max(1))
     }
 
     /// The segments that merging starts from, for `regions` regions of `image`: its areas of
@@ -226,14 +224,6 @@ impl SegmentOptions {
         }
     }
 }
-
-/// The fewest pixels a SLIC segment is asked to hold: a grid step of 2 pixels. Closer, the
-/// centres' move to the lowest gradient of their 3 × 3 neighbourhood lands two on one pixel and
-/// none on a one-pixel edge, whose pixels then join a segment across it, which no merge undoes:
-/// at 3000 regions of a 256-px emoji (24 000 segments asked, a step of 1.65) the anti-aliased
-/// row between two stripes of a flag came out averaged with the row above, and its fallback
-/// drew 37.76 dB against 46.32 at 2000 regions.
-pub const MIN_SEGMENT_PIXELS: usize = 4;
 
 /// How many times the regions [`SegmentOptions::ward`] asks SLIC for: 4 draws 0.1–1.3 dB worse
 /// (photos, emoji) at 500 and 2000 regions, 16 no better on photos and worse on emoji, at up to
@@ -725,14 +715,5 @@ mod tests {
         let noise = Rgb32FImage::from_fn(32, 32, |x, y| image::Rgb([x as f32 / 32.0, y as f32 / 32.0, 0.5]));
         let segments = ward.over_segment(&noise, 4).unwrap().regions.len();
         assert!((16..=64).contains(&segments), "{segments} SLIC segments for 32 asked");
-    }
-
-    #[test]
-    fn slic_is_asked_for_segments_of_at_least_four_pixels() {
-        let ward = SegmentOptions::ward(30.0);
-        assert_eq!(ward.segments_for(100, 65_536), 800);
-        assert_eq!(ward.segments_for(3000, 65_536), 16_384, "a step of 2 pixels, not 1.65");
-        assert_eq!(ward.segments_for(20_000, 65_536), 20_000, "never fewer than the regions");
-        assert_eq!(ward.segments_for(20, 16), 16, "never more than the pixels");
     }
 }
