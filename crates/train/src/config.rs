@@ -375,7 +375,7 @@ pub enum Teacher {
     #[default]
     Coarse,
     /// The paths the exact optimizer places on the sample's canvas against its image
-    /// ([`crate::teacher::OptimizerTeacher`], `loss.teacher_steps` Adam steps): seeded where the
+    /// ([`model::PathOptimizer`], `loss.teacher_steps` Adam steps): seeded where the
     /// canvas errs most. Needs `data.canvas = "fallback"`, whose boxes are all image.
     Optimizer,
 }

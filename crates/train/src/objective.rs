@@ -5,7 +5,7 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 use dpw::{PathDistance, boundary_loss_of_union, dpw, multiscale_masked_l2, path_efficiency_loss};
-use model::{CoarseModel, CropBatch, InputSpec, RefineModel, Stage};
+use model::{CoarseModel, CropBatch, InputSpec, PathOptimizer, RefineModel, Stage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use raster::{ExactBatch, PARAMS, PathBatch, SoftRasterOptions, Window, paint_soft, paint_soft_with_union};
@@ -17,7 +17,7 @@ use crate::config::{
 };
 use crate::data::Samples;
 use crate::inference::{AtInference, CoarseCheck, RefineCheck};
-use crate::teacher::OptimizerTeacher;
+use crate::teacher::teach;
 
 /// What one step computed: the total to minimize, the terms to report, and what to preview.
 pub struct StepOutput {
@@ -168,7 +168,7 @@ impl Objective for CoarseObjective {
 /// With `loss.colours = "fitted"` the image terms score S' in the colours inference would give
 /// it (each path's least-squares colour over what lies below it), not in E_r's own. With
 /// `loss.teacher = "optimizer"` the guidance ties S' to the paths the exact optimizer places on
-/// that canvas ([`OptimizerTeacher`]) instead of to S₂.
+/// that canvas ([`model::PathOptimizer`]) instead of to S₂.
 pub struct RefineObjective {
     /// The trained coarse model (frozen).
     pub teacher: CoarseModel,
@@ -264,9 +264,8 @@ impl Objective for RefineObjective {
         let (guide, split) = match self.loss.teacher {
             Teacher::Coarse => (coarse, split),
             Teacher::Optimizer => {
-                let teacher =
-                    OptimizerTeacher { paths: model.refine_paths(), steps: self.loss.teacher_steps };
-                let taught = teacher.teach(&canvas, &scored.pixels);
+                let optimizer = PathOptimizer { paths: model.refine_paths(), steps: self.loss.teacher_steps };
+                let taught = teach(optimizer, &canvas, &scored.pixels);
                 laps.lap("teacher");
                 let split = Split::guide_only(&taught);
                 (taught, split)
