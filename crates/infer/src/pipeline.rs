@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use burn::tensor::Device;
 use common::Loaded;
-use model::OperatingPoint;
+use model::{OperatingPoint, PathOptimizer};
 use raster::{SvgError, SvgOptions, to_svg_with};
 use serde::Serialize;
 use superpixel::SlicError;
@@ -21,7 +21,7 @@ use crate::coarse::{CoarseBudget, Pricing, Trade, draw_coarse};
 use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
 use crate::models::Models;
 use crate::paper::draw_paper;
-use crate::refine::{RefineTally, draw_refinement, draw_refinement_traded};
+use crate::refine::{Proposer, RefineTally, Refiner, draw_refinement, draw_refinement_traded};
 use crate::scene::{Scene, StageCounts};
 use crate::segmentation::{AutoBudget, Segmented, auto_budget, hierarchy, max_regions};
 
@@ -145,6 +145,8 @@ pub struct Job {
     pub tolerance: Option<f32>,
     /// Crops per network call.
     pub batch: usize,
+    /// Who proposes the refinement stage's paths: E_r, or the exact optimizer in its place.
+    pub refiner: Refiner,
 }
 
 impl Default for Job {
@@ -158,6 +160,7 @@ impl Default for Job {
             compactness: 30.0,
             tolerance: None,
             batch: 32,
+            refiner: Refiner::Network,
         }
     }
 }
@@ -323,7 +326,7 @@ pub fn run_with_progress(
     let started = Instant::now();
     let target = &image.image;
     let (width, height) = target.dimensions();
-    let point = operating_point(models, job.operating_point);
+    let point = operating_point(models, job);
     let most = max_regions(width, height);
     let mut warnings = Vec::new();
     let (paths, regions, tree, tolerance) = match job.paths {
@@ -369,12 +372,18 @@ pub fn run_with_progress(
     let coarse = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let refinement = match &models.refine {
-        Some(refine) => match trade {
+    let proposer = match job.refiner {
+        Refiner::Network => models.refine.as_ref().map(Proposer::Network),
+        Refiner::Optimizer { steps } => {
+            Some(Proposer::Optimizer(PathOptimizer { paths: models.config.refine_paths, steps }))
+        }
+    };
+    let refinement = match proposer {
+        Some(proposer) => match trade {
             Some(trade) => {
-                draw_refinement_traded(refine, &models.config, &mut scene, paths, trade, job.batch, device)
+                draw_refinement_traded(proposer, &models.config, &mut scene, paths, trade, job.batch, device)
             }
-            None => draw_refinement(refine, &models.config, &mut scene, paths, job.batch, device),
+            None => draw_refinement(proposer, &models.config, &mut scene, paths, job.batch, device),
         },
         None => RefineTally::default(),
     };
@@ -443,13 +452,14 @@ fn finish(
 }
 
 /// The operating point a job uses: the one given, else the models' own, with no budget kept for
-/// E_r when there is none. The paper's inference has none; it reads as the stored one here.
-pub fn operating_point(models: &Models, split: BudgetSplit) -> OperatingPoint {
-    let mut point = match split {
+/// E_r when there is none (and no optimizer in its place). The paper's inference has none; it
+/// reads as the stored one here.
+pub fn operating_point(models: &Models, job: &Job) -> OperatingPoint {
+    let mut point = match job.operating_point {
         BudgetSplit::Point(point) => point,
         BudgetSplit::Stored | BudgetSplit::Paper => models.operating_point,
     };
-    if models.refine.is_none() {
+    if models.refine.is_none() && job.refiner == Refiner::Network {
         point.refine_share = 0.0;
     }
     point

@@ -217,3 +217,22 @@ fn curves_cover_every_pixel_and_a_looser_tolerance_writes_fewer_bytes() {
     }
     assert!(bytes[2] < bytes[1] && bytes[1] < bytes[0], "bytes at tolerance 0, 0.5, 2: {bytes:?}");
 }
+
+/// The exact optimizer proposes in E_r's place, with or without E_r loaded: it keeps the share
+/// of the budget the split reserves for refinement, keeps paths there, each lowering the error,
+/// and draws better than the (untrained) E_r given the same share.
+#[test]
+fn the_optimizer_refines_in_place_of_e_r() {
+    use infer::refine::Refiner;
+    let (image, device) = (photo(), Device::flex());
+    let point = OperatingPoint { coarse_share: 0.0, refine_share: 0.3 };
+    let split = |refiner| Job { operating_point: BudgetSplit::Point(point), refiner, ..job(40) };
+    let optimizer = Refiner::Optimizer { steps: 30 };
+    let e_r = run(&models(true), &image, &split(Refiner::Network), &device).unwrap().report;
+    let with_e_r = run(&models(true), &image, &split(optimizer), &device).unwrap().report;
+    let optimized = run(&models(false), &image, &split(optimizer), &device).unwrap().report;
+    assert_eq!((optimized.psnr, optimized.paths), (with_e_r.psnr, with_e_r.paths), "E_r plays no part");
+    assert_eq!(optimized.operating_point, BudgetSplit::Point(point));
+    assert!(optimized.paths_by_stage.refine > 0 && optimized.paths <= 40, "{:?}", optimized.paths_by_stage);
+    assert!(optimized.refinement.gain_db > 0.0 && optimized.psnr > e_r.psnr, "{optimized:?} against {e_r:?}");
+}

@@ -12,7 +12,7 @@ use infer::coarse::{CoarseBudget, Pricing, Trade, draw_coarse};
 use infer::fallback::{FallbackDrawing, fitted_path};
 use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
 use infer::models::Models;
-use infer::refine::{draw_refinement, draw_refinement_traded};
+use infer::refine::{Proposer, draw_refinement, draw_refinement_traded};
 use infer::scene::{Origin, Scene};
 use infer::segmentation::Segmented;
 use rand::SeedableRng;
@@ -67,7 +67,7 @@ fn no_stage_lowers_the_psnr() {
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
         assert!(scene.len() <= 45);
 
-        draw_refinement(refine, &models.config, &mut scene, budget, 16, &device);
+        draw_refinement(Proposer::Network(refine), &models.config, &mut scene, budget, 16, &device);
         let after_refine = score(&scene);
         assert!(after_refine >= after_coarse, "refinement {after_refine} < coarse {after_coarse}");
         assert!(scene.len() <= budget);
@@ -147,7 +147,15 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
             bought += coarse;
 
             let (before, regions, free) = (drawn, scene.segmentation().regions.len(), total - scene.len());
-            let tally = draw_refinement_traded(refine, &models.config, &mut scene, total, trade, 16, &device);
+            let tally = draw_refinement_traded(
+                Proposer::Network(refine),
+                &models.config,
+                &mut scene,
+                total,
+                trade,
+                16,
+                &device,
+            );
             let after = psnr(&scene.canvas_image(), &image);
             let refined = scene.counts().refine;
             assert!(

@@ -17,7 +17,7 @@ use common::Loaded;
 use image::Rgb32FImage;
 use infer::fallback::FallbackDrawing;
 use infer::models::Identity;
-use infer::refine::draw_refinement;
+use infer::refine::{Proposer, draw_refinement};
 use infer::scene::Scene;
 use infer::segmentation::{Segmented, hierarchy, max_regions};
 use infer::{BudgetSplit, Job, MAX_PATHS, Models, PathBudget};
@@ -108,7 +108,8 @@ impl RefineCheck {
         for case in &self.cases {
             let mut scene = case.scene.clone();
             let budget = scene.len() + case.extra;
-            let tally = draw_refinement(model, &self.config, &mut scene, budget, BATCH, device);
+            let tally =
+                draw_refinement(Proposer::Network(model), &self.config, &mut scene, budget, BATCH, device);
             scores.proposed += tally.proposed;
             scores.kept += tally.kept;
             scores.gain_db += tally.gain_db;
