@@ -73,8 +73,7 @@ impl Proposer<'_> {
 }
 
 /// Which [`Proposer`] a job's refinement stage uses (`infer --refiner`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Refiner {
     /// E_r, the bundled or given refinement model (none with `--no-refine`).
     #[default]
@@ -97,14 +96,13 @@ impl std::str::FromStr for Refiner {
 
     /// `network`, `optimizer` ([`OPTIMIZER_STEPS`]) or `optimizer:STEPS`.
     fn from_str(text: &str) -> Result<Self, Self::Err> {
-        match text.split_once(':') {
-            _ if text == "network" => Ok(Refiner::Network),
-            _ if text == "optimizer" => Ok(Refiner::Optimizer { steps: OPTIMIZER_STEPS }),
-            Some(("optimizer", steps)) => match steps.parse::<usize>() {
-                Ok(steps) if steps > 0 => Ok(Refiner::Optimizer { steps }),
+        match text {
+            "network" => Ok(Refiner::Network),
+            "optimizer" => Ok(Refiner::Optimizer { steps: OPTIMIZER_STEPS }),
+            _ => match text.strip_prefix("optimizer:").map(str::parse::<usize>) {
+                Some(Ok(steps)) if steps > 0 => Ok(Refiner::Optimizer { steps }),
                 _ => Err(RefinerParseError(text.to_string())),
             },
-            _ => Err(RefinerParseError(text.to_string())),
         }
     }
 }
