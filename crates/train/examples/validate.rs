@@ -8,7 +8,8 @@
 //! `validation.coarse_share` for E_c, `psnr_b`, E_c's paths `bought`, and `psnr_regions`, the
 //! fallback alone at the same budget); a refinement checkpoint (with a refine config such as `configs/refine.toml`) the way
 //! inference uses it, on the images' fallback drawings with `validation.refine_share` of the
-//! paths (`proposed`, `kept`, `gain_db`, and `regions_db`: what the same paths add as regions).
+//! paths (`proposed`, `kept`, `gain_db`, `regions_db`: what the same paths add as regions, and
+//! `optimizer_db`: what the exact optimizer's paths add in E_r's place).
 
 use std::path::PathBuf;
 

@@ -4,7 +4,8 @@
 //! - E_r ([`RefineCheck`]): on the fallback drawing of each image (what the coarse stage hands
 //!   E_r on photos), infer's own refinement stage asks it for paths on the regions drawn worst,
 //!   recolours them and keeps those that lower the error, within a share of the budget. It
-//!   earns that share when the PSNR its kept paths add beats what as many more regions add.
+//!   earns that share when the PSNR its kept paths add beats what as many more regions add;
+//!   the exact optimizer proposing in its place says what its role can reach.
 //! - E_c ([`CoarseCheck`]): each image drawn by SuperSVG-B with E_c and no E_r (`infer::run`:
 //!   its paths bought from the regions by the trade), against the fallback alone at the same
 //!   budget (`infer --regions N-1`).
@@ -17,11 +18,11 @@ use common::Loaded;
 use image::Rgb32FImage;
 use infer::fallback::FallbackDrawing;
 use infer::models::Identity;
-use infer::refine::{Proposer, draw_refinement};
+use infer::refine::{OPTIMIZER_STEPS, Proposer, draw_refinement};
 use infer::scene::Scene;
 use infer::segmentation::{Segmented, hierarchy, max_regions};
 use infer::{BudgetSplit, Job, MAX_PATHS, Models, PathBudget};
-use model::{CoarseModel, ModelConfig, OperatingPoint, RefineModel};
+use model::{CoarseModel, ModelConfig, OperatingPoint, PathOptimizer, RefineModel};
 use serde::Serialize;
 
 use crate::data::{DataError, ImageSet};
@@ -47,6 +48,8 @@ struct Case {
     extra: usize,
     /// PSNR (dB) that `extra` more regions add to the fallback drawing.
     regions_db: f64,
+    /// PSNR (dB) that the exact optimizer's paths add in E_r's place, within `extra`.
+    optimizer_db: f64,
 }
 
 /// The held-out images of `[validation]`, each drawn by its regions at the count the crops of
@@ -67,6 +70,10 @@ pub struct RefineScores {
     pub gain_db: f64,
     /// The PSNR (dB) the same budget adds as more regions, averaged: the bar.
     pub regions_db: f64,
+    /// The PSNR (dB) the exact optimizer's paths add in E_r's place with the same budget
+    /// ([`Proposer::Optimizer`], [`OPTIMIZER_STEPS`] steps a crop), averaged: what gradient
+    /// descent finds in E_r's role, which a trained E_r is measured against.
+    pub optimizer_db: f64,
 }
 
 impl RefineScores {
@@ -97,14 +104,26 @@ impl RefineCheck {
             let more = FallbackDrawing::new(&image, &Arc::new(hierarchy.cut(&image, count + extra)), None);
             let regions_db = 10.0 * (fallback.error / more.error.max(f64::MIN_POSITIVE)).log10();
             let scene = Scene::drawn(image, segmentation, fallback.placed(), fallback.canvas);
-            cases.push(Case { scene, extra, regions_db });
+            let optimizer = PathOptimizer { paths: model.refine_paths, steps: OPTIMIZER_STEPS };
+            let budget = scene.len() + extra;
+            let optimizer_db = draw_refinement(
+                Proposer::Optimizer(optimizer),
+                model,
+                &mut scene.clone(),
+                budget,
+                BATCH,
+                &Device::flex(),
+            )
+            .gain_db;
+            cases.push(Case { scene, extra, regions_db, optimizer_db });
         }
         Ok(Some(Self { cases, config: model.clone() }))
     }
 
     /// Runs inference's refinement stage with `model` (on `device`) over every image's drawing.
     pub fn score(&self, model: &RefineModel, device: &Device) -> RefineScores {
-        let mut scores = RefineScores { proposed: 0, kept: 0, gain_db: 0.0, regions_db: 0.0 };
+        let mut scores =
+            RefineScores { proposed: 0, kept: 0, gain_db: 0.0, regions_db: 0.0, optimizer_db: 0.0 };
         for case in &self.cases {
             let mut scene = case.scene.clone();
             let budget = scene.len() + case.extra;
@@ -114,10 +133,12 @@ impl RefineCheck {
             scores.kept += tally.kept;
             scores.gain_db += tally.gain_db;
             scores.regions_db += case.regions_db;
+            scores.optimizer_db += case.optimizer_db;
         }
         let images = self.cases.len().max(1) as f64;
         scores.gain_db /= images;
         scores.regions_db /= images;
+        scores.optimizer_db /= images;
         scores
     }
 }

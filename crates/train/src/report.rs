@@ -118,12 +118,14 @@ impl Reporter {
             AtInference::Refine(scores) => {
                 self.scores_line(step, "val_refine_", scores)?;
                 self.say(&format!(
-                    "at inference: E_r kept {} of {} paths, +{:.3} dB, where as many more regions add +{:.3} dB ({:+.3})",
+                    "at inference: E_r kept {} of {} paths, +{:.3} dB, where as many more regions add +{:.3} dB ({:+.3}) \
+                     and the optimizer in E_r's place +{:.3}",
                     scores.kept,
                     scores.proposed,
                     scores.gain_db,
                     scores.regions_db,
-                    scores.margin_db()
+                    scores.margin_db(),
+                    scores.optimizer_db
                 ));
             }
         }

@@ -265,6 +265,10 @@ fn refinement_on_the_fallback_drawing_trains_and_is_scored_at_inference() {
     // Kept paths only lower the error; more regions lower it too, on a picture of ramps.
     assert!(metric(&dir, "val_refine_gain_db").iter().all(|&(_, db)| db >= 0.0));
     assert!(metric(&dir, "val_refine_regions_db").iter().all(|&(_, db)| db > 0.0));
+    // The optimizer in E_r's place finds paths that lower the error too (the same figure at
+    // every step: it does not depend on the model).
+    let optimizer = metric(&dir, "val_refine_optimizer_db");
+    assert!(optimizer.iter().all(|&(_, db)| db > 0.0 && db == optimizer[0].1), "{optimizer:?}");
     for dir in [held_out, dir] {
         std::fs::remove_dir_all(dir).unwrap();
     }
