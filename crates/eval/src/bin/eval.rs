@@ -31,7 +31,7 @@ use eval::rate::{RatePoint, at, frontier};
 use eval::spill::spill;
 use image::{Rgb32FImage, RgbImage};
 use infer::finetune::{Budget as FinetuneBudget, FinetuneOptions};
-use infer::refine::RefineTally;
+use infer::refine::{OPTIMIZER_STEPS, RefineTally, Refiner};
 use infer::scene::{Origin, StageCounts};
 use infer::{AutoBudget, BudgetSplit, Job, MAX_PATHS, Outcome, PathBudget, run};
 use raster::Backend;
@@ -52,6 +52,9 @@ enum Peer {
     /// The paper's inference with the same models: as `infer --paths N --operating-point paper`
     /// draws it (for models trained with the paper preset, beside the paper's tables).
     Paper,
+    /// SuperSVG-B with the exact optimizer proposing in E_r's place: as `infer --paths N
+    /// --refiner optimizer` draws it (what E_r's role can reach, for judging a trained E_r).
+    Optimizer,
 }
 
 /// Dilation (pixels) of a region's mask before its paths' spill is measured: the margin the
@@ -75,7 +78,7 @@ struct Args {
     out: PathBuf,
     /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
     /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`,
-    /// `IMAGE-paper-500.svg`): the files `infer`
+    /// `IMAGE-paper-500.svg`, `IMAGE-optimizer-500.svg`): the files `infer`
     /// writes with the same settings.
     #[arg(long)]
     svgs: Option<PathBuf>,
@@ -149,6 +152,8 @@ enum Method {
     OursNoRefine,
     /// SuperSVG-B at the paper's operating point.
     OursPaper,
+    /// SuperSVG-B with the exact optimizer in E_r's place.
+    OursOptimizer,
     /// The fallback drawing alone.
     Fallback,
     /// vtracer with one knob searched to the budget.
@@ -170,6 +175,7 @@ impl Method {
             Method::OursAuto => "SuperSVG-B (ours), --paths auto",
             Method::OursNoRefine => "SuperSVG-B without E_r (--no-refine)",
             Method::OursPaper => "SuperSVG-B, the paper's inference (--operating-point paper)",
+            Method::OursOptimizer => "SuperSVG-B, the exact optimizer in E_r's place (--refiner optimizer)",
             Method::Fallback => "fallback alone (traced regions, mean colour)",
             Method::Vtracer => "vtracer",
             Method::VtracerDefault => "vtracer (default settings)",
@@ -376,6 +382,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                     (Method::Fallback, Table::Paths(n)) => format!("fallback-{n}"),
                     (Method::OursNoRefine, Table::Paths(n)) => format!("no-refine-{n}"),
                     (Method::OursPaper, Table::Paths(n)) => format!("paper-{n}"),
+                    (Method::OursOptimizer, Table::Paths(n)) => format!("optimizer-{n}"),
                     (_, Table::Paths(n)) => format!("b-{n}"),
                     (_, Table::Own | Table::Sweep(_)) => "own".to_string(),
                 };
@@ -447,6 +454,12 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 let outcome = run(&models, &loaded, &paper, &device)?;
                 let (drawn, seconds, anatomy) = ours(table, Method::OursPaper, &outcome);
                 record(table, Method::OursPaper, &drawn, seconds, anatomy, &mut tiles);
+            }
+            if wanted(Peer::Optimizer) {
+                let optimized = Job { refiner: Refiner::Optimizer { steps: OPTIMIZER_STEPS }, ..job.clone() };
+                let outcome = run(&regions_only, &loaded, &optimized, &device)?;
+                let (drawn, seconds, anatomy) = ours(table, Method::OursOptimizer, &outcome);
+                record(table, Method::OursOptimizer, &drawn, seconds, anatomy, &mut tiles);
             }
             if use_vtracer {
                 let traced = vtracer(&png, Some(budget), &scratch);
