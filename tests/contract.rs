@@ -2,7 +2,7 @@
 
 use burn::tensor::Device;
 use image::{Rgb, Rgb32FImage};
-use supersvg::infer::scene::Scene;
+use supersvg::infer::Scene;
 use supersvg::model::{CropBatch, InputSpec, ModelConfig, Preset};
 use supersvg::superpixel::{SegmentOptions, segment};
 use supersvg::train::config::DataConfig;

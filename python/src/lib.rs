@@ -14,8 +14,7 @@ use std::sync::OnceLock;
 use burn::tensor::Device;
 use common::decode::{self, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
 use common::write::write_atomic;
-use infer::finetune::{Budget, FinetuneOptions};
-use infer::{AutoBudget, Job, Models, PathBudget};
+use infer::{AutoRule, FinetuneOptions, Job, Limit, Models, PathBudget};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -69,9 +68,9 @@ impl Request {
 
     fn job(&self) -> Job {
         Job {
-            paths: self.paths.map_or(PathBudget::Auto(AutoBudget::default()), PathBudget::Count),
+            paths: self.paths.map_or(PathBudget::Auto(AutoRule::default()), PathBudget::Count),
             finetune: self.finetune_secs.map(|seconds| FinetuneOptions {
-                budget: Budget::Seconds(seconds),
+                limit: Limit::Seconds(seconds),
                 ..FinetuneOptions::default()
             }),
             ..Job::default()
@@ -92,7 +91,7 @@ impl Request {
             let loaded = read(&options).map_err(decode_error)?;
             let mut interrupted = None;
             // Fine-tuning runs for seconds: let Ctrl-C stop it between steps, as it stops Python.
-            let mut on_step = |_: &infer::finetune::Progress| match Python::attach(|py| py.check_signals()) {
+            let mut on_step = |_: &infer::Progress| match Python::attach(|py| py.check_signals()) {
                 Ok(()) => ControlFlow::Continue(()),
                 Err(err) => {
                     interrupted = Some(err);

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use burn::tensor::Device;
-use infer::models::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, Models, ModelsError, bundled};
+use infer::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, Models, ModelsError, bundled};
 
 /// Prints a failed run's error and gives the exit code: 0 on success, 1 on error.
 pub fn finish(result: anyhow::Result<()>) -> ExitCode {

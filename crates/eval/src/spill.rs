@@ -1,6 +1,6 @@
 //! How much of a drawing lies outside the regions its paths were drawn for.
 
-use infer::scene::Placed;
+use infer::Placed;
 use raster::coverage_exact;
 use superpixel::Segmentation;
 
@@ -39,7 +39,7 @@ fn near(segmentation: &Segmentation, region: u32, x: u32, y: u32, dilation: u32)
 #[cfg(test)]
 mod tests {
     use image::{Rgb, Rgb32FImage};
-    use infer::scene::Origin;
+    use infer::Origin;
     use raster::Path;
     use superpixel::{SlicOptions, slic};
 

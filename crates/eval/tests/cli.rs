@@ -150,7 +150,7 @@ fn svgs_are_what_infer_writes() {
     let image = common::decode::load(&dir.join("a.png"), 48).unwrap();
     let budgets = [
         ("a-b-24.svg", infer::PathBudget::Count(24)),
-        ("a-auto.svg", infer::PathBudget::Auto(infer::AutoBudget::default())),
+        ("a-auto.svg", infer::PathBudget::Auto(infer::AutoRule::default())),
     ];
     for (file, paths) in budgets {
         let job = infer::Job { paths, ..infer::Job::default() };

@@ -15,8 +15,7 @@ use burn::tensor::Device;
 use clap::Parser;
 use common::decode::load;
 use common::psnr;
-use infer::finetune::{Budget, FinetuneOptions, finetune};
-use infer::{Job, Models, PathBudget, run};
+use infer::{FinetuneOptions, Job, Limit, Models, PathBudget, finetune, run};
 
 /// Time SuperSVG-F on one image.
 #[derive(Parser, Debug)]
@@ -56,7 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut scene = drawn.scene.clone();
         let defaults = FinetuneOptions::default();
         let options = FinetuneOptions {
-            budget: Budget::Seconds(seconds),
+            limit: Limit::Seconds(seconds),
             lr_points: args.lr_points.unwrap_or(defaults.lr_points),
             lr_colors: args.lr_colors.unwrap_or(defaults.lr_colors),
             ..defaults

@@ -129,7 +129,7 @@ fn region_outline(
 }
 
 /// `outline` (unit square of a `width × height` canvas) as one path: its largest contour fitted
-/// with four cubics, grown by [`GROW`] pixels. What fine-tuning, which moves paths, starts from;
+/// with four cubics, grown by `GROW` pixels. What fine-tuning, which moves paths, starts from;
 /// `None` if the outline cannot be fitted.
 pub fn fitted_path(outline: &Outline, (width, height): (u32, u32)) -> Option<Path> {
     let (width, height) = (width as f32, height as f32);
@@ -188,12 +188,12 @@ fn traced(segmentation: &Segmentation, order: &[u32], tolerance: Option<f32>) ->
 /// picture, whose every region has the background's colour, the drawing is the background alone.
 #[derive(Clone, Debug)]
 pub struct FallbackDrawing {
-    /// The regions in painter's order ([`painter_order`]).
+    /// The regions in painter's order (larger boxes first).
     pub order: Vec<u32>,
     /// Each region's polygon, in `order`; `None` where a region has no pixels or its polygon
     /// would lower nothing.
     pub regions: Vec<Option<Shape>>,
-    /// The path under everything ([`background`] of the region paths).
+    /// The path under everything (in the colour of what the region paths leave showing).
     pub background: Path,
     /// The exact rendering of [`FallbackDrawing::paths`] (premultiplied RGBA).
     pub canvas: Pixmap,
@@ -242,6 +242,13 @@ impl FallbackDrawing {
             shape.clone().map(|shape| Placed { shape, region: Some(region), origin: Origin::Fallback })
         });
         std::iter::once(background).chain(regions).collect()
+    }
+
+    /// The scene of this drawing alone, of `target` split into `segmentation` (the image and
+    /// the regions it was made of): nothing is painted again.
+    pub fn into_scene(self, target: &Arc<Rgb32FImage>, segmentation: &Arc<Segmentation>) -> Scene {
+        let placed = self.placed();
+        Scene::drawn(target.clone(), segmentation.clone(), placed, self.canvas)
     }
 
     /// Its mean squared error per value (the error over pixels × 3 channels).

@@ -14,9 +14,9 @@ use raster::{PARAMS, Path, PathAdam, Shape, Window};
 use crate::fallback::fitted_path;
 use crate::scene::Scene;
 
-/// How long to fine-tune.
+/// When fine-tuning stops.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Budget {
+pub enum Limit {
     /// This many optimizer steps (each moves every path).
     Steps(usize),
     /// Steps until this many seconds have passed.
@@ -27,7 +27,7 @@ pub enum Budget {
 #[derive(Clone, Debug)]
 pub struct FinetuneOptions {
     /// When to stop.
-    pub budget: Budget,
+    pub limit: Limit,
     /// Adam learning rate of the control points (in the unit square of the image).
     pub lr_points: f32,
     /// Adam learning rate of colours and opacity.
@@ -38,16 +38,10 @@ pub struct FinetuneOptions {
 const WHITE: [f32; 3] = [1.0; 3];
 
 impl Default for FinetuneOptions {
-    /// Rates measured with `bench-finetune --lr-points X --lr-colors Y` on the 8 photos of
-    /// data/eval/photos at 500 paths, mean gain over B after 2 / 5 / 10 s: points 1e-3 and
-    /// colours 3e-2 +3.00 / +3.24 / +3.33 dB; 5e-4 / 3e-2 +2.93 / +3.27 / +3.42; 2e-3 / 3e-2
-    /// +2.78 / +2.91 / +2.95; 1e-3 / 1e-2 +2.70 / +2.92 / +3.05; 1e-3 / 1e-1 +3.02 / +3.23 /
-    /// +3.30; the default with both rates falling linearly to a tenth over the budget +2.85 /
-    /// +3.13 / +3.24 (the sweep ran before the outline gradient read its sides from the
-    /// coverage; the default then gained +3.3 / +4.0 dB after 2 / 10 s in `eval`). Points at
-    /// 1e-3 move about half a pixel a step at 512 px (the reference's rate).
+    /// 100 steps; points at 1e-3 (about half a pixel a step at 512 px, the reference's rate)
+    /// and colours at 3e-2, the best of the sweep in docs/method.md.
     fn default() -> Self {
-        Self { budget: Budget::Steps(100), lr_points: 1e-3, lr_colors: 3e-2 }
+        Self { limit: Limit::Steps(100), lr_points: 1e-3, lr_colors: 3e-2 }
     }
 }
 
@@ -58,7 +52,7 @@ pub struct Progress {
     pub seconds: f64,
     /// Optimizer steps taken.
     pub steps: usize,
-    /// Steps the budget allows in all (`None` for a budget in seconds).
+    /// Steps the limit allows in all (`None` for a limit in seconds).
     pub total_steps: Option<usize>,
     /// PSNR (dB) of the exact drawing of the best state so far.
     pub psnr: f64,
@@ -95,17 +89,17 @@ pub fn finetune_with_progress(
     let mut params: Vec<[f32; PARAMS]> = start.iter().map(|path| path.to_params()).collect();
     let mut adam = PathAdam::new(params.len());
     let mut best = (f64::INFINITY, start);
-    let total_steps = match options.budget {
-        Budget::Steps(steps) => Some(steps),
-        Budget::Seconds(_) => None,
+    let total_steps = match options.limit {
+        Limit::Steps(steps) => Some(steps),
+        Limit::Seconds(_) => None,
     };
     let mut steps = 0;
     let mut stopped = false;
     loop {
         let done = stopped
-            || match options.budget {
-                Budget::Steps(total) => steps >= total,
-                Budget::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
+            || match options.limit {
+                Limit::Steps(total) => steps >= total,
+                Limit::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
             };
         let paths: Vec<Path> = params.iter().map(Path::from_params).collect();
         if done {

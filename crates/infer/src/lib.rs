@@ -1,6 +1,6 @@
 //! SuperSVG inference: an image to SVG in one call ([`run`]) — superpixels, the coarse network
-//! E_c and the refinement network E_r as stages over one [`scene::Scene`] (SuperSVG-B), then,
-//! if asked, every path fine-tuned against the image (SuperSVG-F).
+//! E_c and the refinement network E_r as stages over one [`Scene`] (SuperSVG-B), then, if
+//! asked, every path fine-tuned against the image (SuperSVG-F).
 //!
 //! ```no_run
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -13,20 +13,43 @@
 //! # Ok(())
 //! # }
 //! ```
+//!
+//! A [`Job`] says what to draw and is checked in one place ([`Job::validate`]); its budget is
+//! planned once per image ([`budget`]); the stages one at a time are in [`stages`], for
+//! training and tests.
 
-pub mod coarse;
-pub mod fallback;
-pub mod finetune;
-pub mod models;
+pub mod budget;
+mod coarse;
+mod fallback;
+mod finetune;
+mod job;
+mod models;
 pub mod paper;
-pub mod pipeline;
-pub mod refine;
-pub mod scene;
-pub mod segmentation;
+mod pipeline;
+mod refine;
+mod scene;
+mod segmentation;
 
-pub use models::Models;
-pub use pipeline::{
-    BudgetParseError, BudgetSplit, Job, MAX_PATHS, Outcome, PathBudget, Report, Seconds, VectorizeError,
-    Warning, run, run_with_progress,
+pub use finetune::{FinetuneOptions, Limit, Progress, finetune, finetune_with_progress};
+pub use job::{
+    AutoRule, BudgetParseError, InvalidJob, Job, MAX_FINETUNE_SECS, MAX_FINETUNE_STEPS, MAX_OPTIMIZER_STEPS,
+    MAX_PATHS, MAX_TOLERANCE, MIN_PATHS, OPTIMIZER_STEPS, PathBudget, Refiner, RefinerParseError, Split,
+    SplitParseError, VectorizeError, Warning,
 };
-pub use segmentation::AutoBudget;
+pub use models::{
+    BUILT_IN_COARSE, BUILT_IN_REFINE, BuiltIn, Context, Identity, MODELS_ENV, ModelSource, Models,
+    ModelsError, bundled,
+};
+pub use pipeline::{Outcome, Report, Seconds, run, run_with_progress};
+pub use refine::RefineTally;
+pub use scene::{Origin, Placed, Scene, StageCounts};
+
+/// The stages of SuperSVG-B one at a time, for those who train the networks the way inference
+/// uses them and for tests: segmenting, the fallback drawing, the coarse and refinement stages.
+pub mod stages {
+    pub use crate::coarse::draw_coarse;
+    pub use crate::fallback::{FallbackDrawing, fitted_path};
+    pub use crate::refine::{Proposer, draw_refinement};
+    pub use crate::scene::Scope;
+    pub use crate::segmentation::{PIXELS_PER_REGION, Segmented, hierarchy, max_regions};
+}

@@ -172,6 +172,18 @@ impl Models {
     }
 }
 
+/// What a stage needs to run a network: the models' configuration (architecture and input
+/// contract), how many crops go into one call, and the device.
+#[derive(Clone, Copy)]
+pub struct Context<'a> {
+    /// The models' configuration.
+    pub config: &'a ModelConfig,
+    /// Crops per network call (at least 1).
+    pub batch: usize,
+    /// Where the networks run.
+    pub device: &'a Device,
+}
+
 /// Environment variable naming a folder with `coarse.ckpt` and `refine.ckpt`, used instead of
 /// the built-in models.
 pub const MODELS_ENV: &str = "SUPERSVG_MODELS";

@@ -12,7 +12,6 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use burn::tensor::Device;
 use image::Rgb32FImage;
 use model::{CropBatch, canvas_cells, crop_to_image};
 use raster::{Path, Shape};
@@ -20,7 +19,7 @@ use superpixel::{RegionCrop, Segmentation, SlicError, SlicOptions, slic};
 
 use crate::coarse::propose;
 use crate::fallback::background;
-use crate::models::Models;
+use crate::models::{Context, Models};
 use crate::refine::RefineTally;
 use crate::scene::{Origin, Placed, Scene};
 use crate::segmentation::max_regions;
@@ -51,21 +50,20 @@ pub fn coarse_regions(paths: usize, width: u32, height: u32) -> usize {
 /// its gain may be negative) and the seconds both networks' forward passes took.
 pub fn draw_paper(
     models: &Models,
+    context: &Context,
     target: &Arc<Rgb32FImage>,
     paths: usize,
-    batch: usize,
-    device: &Device,
 ) -> Result<(Scene, RefineTally, f64), SlicError> {
     let (width, height) = target.dimensions();
     let segmentation = Arc::new(slic(target, &coarse_slic(coarse_regions(paths, width, height)))?);
-    let config = &models.config;
+    let config = context.config;
     let crops: Vec<RegionCrop> = (0..segmentation.regions.len() as u32)
         .map(|region| config.region_crop(&segmentation, target, region))
         .collect();
     let share = (paths - 1) / segmentation.regions.len();
     let mut drawn: Vec<Placed> = Vec::new();
     let clock = Instant::now();
-    let proposals = propose(&models.coarse, &crops, (width, height), batch, device);
+    let proposals = propose(&models.coarse, context, &crops, (width, height));
     let coarse_network = clock.elapsed().as_secs_f64();
     for (region, proposed) in proposals.into_iter().enumerate() {
         drawn.extend(proposed.into_iter().take(share).map(|path| Placed {
@@ -89,7 +87,7 @@ pub fn draw_paper(
             let second = slic(target, &refine_slic(regions))?;
             let before = scene.total_error();
             let clock = Instant::now();
-            let proposed = propose_refinement(models, refine, &scene, &second, batch, device);
+            let proposed = propose_refinement(context, refine, &scene, &second);
             tally.network_seconds = clock.elapsed().as_secs_f64();
             tally.proposed = proposed.len();
             // Appended until the scene holds `paths` (a path that cannot be drawn is passed over).
@@ -108,24 +106,23 @@ pub fn draw_paper(
 }
 
 /// E_r once over every region of `second` on `scene`'s canvas as the coarse stage left it
-/// (batched, `batch` crops a call): its visible paths, opaque, in label order.
+/// (`context.batch` crops a call): its visible paths, opaque, in label order.
 fn propose_refinement(
-    models: &Models,
+    context: &Context,
     refine: &model::RefineModel,
     scene: &Scene,
     second: &Segmentation,
-    batch: usize,
-    device: &Device,
 ) -> Vec<Path> {
+    let device = context.device;
     let (width, height) = scene.target().dimensions();
     let canvas = scene.canvas_image();
     let crops: Vec<RegionCrop> = (0..second.regions.len() as u32)
-        .map(|region| models.config.region_crop(second, scene.target(), region))
+        .map(|region| context.config.region_crop(second, scene.target(), region))
         .collect();
     let mut proposed = Vec::new();
-    for chunk in crops.chunks(batch.max(1)) {
+    for chunk in crops.chunks(context.batch.max(1)) {
         let targets = CropBatch::new(chunk, device);
-        let cells = targets.masked_canvas(canvas_cells(&canvas, chunk, device), &models.config.input);
+        let cells = targets.masked_canvas(canvas_cells(&canvas, chunk, device), &context.config.input);
         for (crop, scene) in chunk.iter().zip(refine.forward(targets.pixels, cells).to_scenes()) {
             let visible = scene.into_iter().filter(Path::is_visible);
             proposed

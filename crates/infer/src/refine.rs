@@ -1,19 +1,17 @@
 //! The refinement stage: E_r adds paths to the regions drawn worst, and a path stays only if it
-//! lowers the error of the box it was drawn in. It fills what the budget leaves
-//! ([`draw_refinement`]) or, by default, also buys paths with regions where they pay
-//! ([`draw_refinement_traded`]). The paths are E_r's, or the exact optimizer's in its place
-//! ([`Proposer`]): what a trained E_r could add at best.
+//! lowers the error of the box it was drawn in. It fills what the budget leaves or, by default,
+//! also buys paths with regions where they pay ([`crate::budget::Market`]). The paths are E_r's,
+//! or the exact optimizer's in its place ([`Proposer`]): what a trained E_r could add at best.
 
-use std::sync::Arc;
 use std::time::Instant;
 
-use burn::tensor::Device;
-use model::{CropBatch, ModelConfig, PathOptimizer, RefineModel, canvas_cells, crop_to_image};
+use model::{CropBatch, PathOptimizer, RefineModel, canvas_cells, crop_to_image};
 use raster::{Path, Shape};
 use serde::Serialize;
 use superpixel::{RegionCrop, worst_first};
 
-use crate::coarse::{MergePrices, Trade, draw_on_cut, region_map, worth_their_regions};
+use crate::budget::{Market, Prices};
+use crate::models::Context;
 use crate::scene::{Origin, Placed, Scene, Scope};
 
 /// What E_r did in a drawing: how many paths it proposed, how many lowered the error and were
@@ -42,26 +40,20 @@ pub enum Proposer<'a> {
     /// The exact optimizer in E_r's place ([`PathOptimizer`]): as many paths a crop as E_r
     /// proposes, seeded where the canvas errs most and moved against the image's box, unmasked.
     /// What gradient descent finds in E_r's role, for judging a trained E_r against
-    /// (`infer --refiner optimizer`): on data/eval's photos 13-23 ms a region at 300 steps on 2
-    /// cores, where E_r's forward takes 3, and worth 4.5 times E_r's paths (models/README.md).
+    /// (`infer --refiner optimizer`).
     Optimizer(PathOptimizer),
 }
 
 impl Proposer<'_> {
     /// The paths proposed for each of `crops` (in each crop's unit square) over `scene`'s
     /// drawing.
-    fn propose(
-        &self,
-        config: &ModelConfig,
-        scene: &Scene,
-        crops: &[&RegionCrop],
-        device: &Device,
-    ) -> Vec<Vec<Path>> {
+    fn propose(&self, context: &Context, scene: &Scene, crops: &[&RegionCrop]) -> Vec<Vec<Path>> {
+        let device = context.device;
         let canvas = canvas_cells(&scene.canvas_image(), crops.iter().copied(), device);
         match self {
             Proposer::Network(refine) => {
                 let targets = CropBatch::new(crops.iter().copied(), device);
-                let canvas = targets.masked_canvas(canvas, &config.input);
+                let canvas = targets.masked_canvas(canvas, &context.config.input);
                 refine.forward(targets.pixels, canvas).to_scenes()
             }
             Proposer::Optimizer(optimizer) => {
@@ -72,121 +64,84 @@ impl Proposer<'_> {
     }
 }
 
-/// Which [`Proposer`] a job's refinement stage uses (`infer --refiner`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Refiner {
-    /// E_r, the bundled or given refinement model (none with `--no-refine`).
-    #[default]
-    Network,
-    /// [`Proposer::Optimizer`] with this many Adam steps a crop, E_r's paths a crop; E_r is not
-    /// run, and the budget is split as for E_r.
-    Optimizer {
-        /// Adam steps a crop.
-        steps: usize,
-    },
-}
-
-/// Adam steps a crop for `--refiner optimizer` without a count: on data/eval's photos at 500
-/// paths with a fifth of the budget for refinement, 1000 steps draw 26.85 dB where 300 draw
-/// 26.82, in 4 times the optimizer's time (52 against 13 ms a region).
-pub const OPTIMIZER_STEPS: usize = 300;
-
-impl std::str::FromStr for Refiner {
-    type Err = RefinerParseError;
-
-    /// `network`, `optimizer` ([`OPTIMIZER_STEPS`]) or `optimizer:STEPS`.
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        match text {
-            "network" => Ok(Refiner::Network),
-            "optimizer" => Ok(Refiner::Optimizer { steps: OPTIMIZER_STEPS }),
-            _ => match text.strip_prefix("optimizer:").map(str::parse::<usize>) {
-                Some(Ok(steps)) if steps > 0 => Ok(Refiner::Optimizer { steps }),
-                _ => Err(RefinerParseError(text.to_string())),
-            },
-        }
+/// Rounds of `proposer` until `scene` holds `budget` paths or no region is left to improve:
+/// each round ranks the regions by squared error, has `proposer` propose paths for the worst
+/// (as many as the remaining budget can use, `context.batch` at most), and tries each proposed
+/// path over the current drawing in its least-squares colour ([`Scene::fit_colour`]), keeping
+/// those that lower the squared error of their box. A region none of whose proposals helped
+/// is not proposed for again; the budget goes to the next-worst ones.
+///
+/// With a `market`, E_r's paths are also bought with regions, as E_c's are: the paths the
+/// budget leaves room for are free; past those each path kept takes the place of a region of
+/// `scene`'s segmentation (a cut of the market's merge tree), merged away where merging costs
+/// least. E_r proposes for the regions drawn worst, `FIRST_PROBE` in the first round (or as
+/// many as the free paths need) and twice as many in each after, up to `context.batch`, until
+/// it has filled the free paths and a round buys paths (worth their regions) for fewer than
+/// half of the regions it asked about; it never buys more than half the regions (the drawing
+/// stays the regions'). The `k` paths that took away the most error are kept, for the `k` at
+/// which their gain less the cost of the merges that free their paths is largest; when that
+/// needs merges the scene is drawn again on the coarser cut (fallback, E_c's paths, then as
+/// many of E_r's as it leaves room for on top, largest gain first, each recoloured and judged
+/// again), and kept only if it beats the drawing with the free paths alone.
+pub fn draw_refinement(
+    context: &Context,
+    proposer: Proposer<'_>,
+    scene: &mut Scene,
+    budget: usize,
+    market: Option<Market<'_>>,
+) -> RefineTally {
+    match market {
+        None => fill(context, proposer, scene, budget),
+        Some(market) => trade(context, proposer, scene, budget, market),
     }
 }
 
-/// Text that is no [`Refiner`].
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{0:?} is not a refiner: network, optimizer, or optimizer:STEPS with STEPS at least 1")]
-pub struct RefinerParseError(pub String);
-
-/// Rounds of E_r until `scene` holds `budget` paths or no region is left to improve: each round
-/// ranks the regions by squared error, has `proposer` propose paths for the worst `batch`
-/// (as many as the remaining budget can use), and tries each proposed path over the current
-/// drawing in its least-squares colour ([`Scene::fit_colour`]), keeping those that lower the
-/// squared error of their box. A region none of whose
-/// proposals helped is not proposed for again; the budget goes to the next-worst ones.
-pub fn draw_refinement(
-    proposer: Proposer<'_>,
-    config: &ModelConfig,
-    scene: &mut Scene,
-    budget: usize,
-    batch: usize,
-    device: &Device,
-) -> RefineTally {
+/// [`draw_refinement`] without a market: E_r fills what the budget leaves.
+fn fill(context: &Context, proposer: Proposer<'_>, scene: &mut Scene, budget: usize) -> RefineTally {
     let before = scene.total_error();
     let mut rounds = Rounds::new(scene);
+    let refine_paths = context.config.refine_paths;
     while scene.len() < budget {
-        let regions = (budget - scene.len()).div_ceil(config.refine_paths).min(batch.max(1));
-        if rounds.next(proposer, config, scene, regions, budget, device) == 0 {
+        let regions = (budget - scene.len()).div_ceil(refine_paths).min(context.batch.max(1));
+        if rounds.next(context, proposer, scene, regions, budget) == 0 {
             break;
         }
     }
     rounds.tally(scene, before)
 }
 
-/// [`draw_refinement`] with E_r's paths also bought with regions, as E_c's are
-/// ([`crate::coarse::Trade`]): the paths the budget leaves room for are free; past those each
-/// path kept takes the place of a region of `scene`'s segmentation (a cut of the trade's merge
-/// tree), merged away where merging costs least. E_r proposes for the regions drawn worst,
-/// [`FIRST_PROBE`] in the first round (or as many as the free paths need) and twice as many in
-/// each after, up to `batch`, until it has filled the free paths and a round buys paths (worth their
-/// regions) for fewer than half of the regions it asked about; it never buys more than half
-/// the regions (the drawing stays the regions'). The `k`
-/// paths that took away the most error are kept, for the `k` at which their gain less the cost
-/// of the merges that free their paths (Ward's criterion or the cuts drawn, as the trade's
-/// [`crate::coarse::Pricing`] says) is largest; when that needs merges the scene is drawn
-/// again on the coarser cut (fallback, E_c's paths, then as many of E_r's as it leaves room for
-/// on top, largest gain first, each recoloured and judged again), and kept only if it beats the
-/// drawing with the free paths alone.
-#[allow(clippy::too_many_arguments)]
-pub fn draw_refinement_traded(
+/// [`draw_refinement`] with E_r's paths bought through `market`.
+fn trade(
+    context: &Context,
     proposer: Proposer<'_>,
-    config: &ModelConfig,
     scene: &mut Scene,
     budget: usize,
-    trade: Trade<'_>,
-    batch: usize,
-    device: &Device,
+    market: Market<'_>,
 ) -> RefineTally {
     let before = scene.total_error();
     let start = scene.len();
     let free = budget.saturating_sub(start);
     let (target, fine) = (scene.target().clone(), scene.segmentation().clone());
     let regions = fine.regions.len();
-    let most_merges = (regions / 2).min(regions.saturating_sub(trade.hierarchy.fewest_regions()));
+    let most_merges = (regions / 2).min(regions.saturating_sub(market.hierarchy.fewest_regions()));
     // Priced once E_r keeps more paths than are free.
-    let mut prices: Option<MergePrices> = None;
+    let mut prices: Option<Prices> = None;
     let mut worth = |gains: &[f64]| {
         if gains.len() <= free {
             return gains.len();
         }
-        let prices = prices.get_or_insert_with(|| MergePrices::new(&target, &fine, trade, most_merges));
-        prices.measure_to_free(&gains[free..]);
-        let price = |k: usize| prices.to_free(k.saturating_sub(free)).map_or(f64::INFINITY, |(cost, _)| cost);
-        worth_their_regions(gains, price)
+        let prices = prices.get_or_insert_with(|| Prices::new(&target, &fine, market, most_merges));
+        prices.buy(gains, free)
     };
     let mut rounds = Rounds::new(scene);
     let mut bought = 0;
     // The first round asks about as many regions as the free paths need, or FIRST_PROBE, and
-    // each round after twice as many as the one before, up to `batch`: where E_r buys nothing
-    // (data/eval's photos, small budgets) that probe is all it costs.
-    let batch = batch.max(1);
-    let mut count = free.div_ceil(config.refine_paths).max(FIRST_PROBE).min(batch);
+    // each round after twice as many as the one before, up to the batch: where E_r buys
+    // nothing that probe is all it costs.
+    let batch = context.batch.max(1);
+    let mut count = free.div_ceil(context.config.refine_paths).max(FIRST_PROBE).min(batch);
     loop {
-        let asked = rounds.next(proposer, config, scene, count, start + free + most_merges, device);
+        let asked = rounds.next(context, proposer, scene, count, start + free + most_merges);
         count = (2 * count).min(batch);
         let kept = rounds.gains.len();
         if asked == 0 || kept == free + most_merges {
@@ -200,18 +155,17 @@ pub fn draw_refinement_traded(
     let ranked = rounds.ranked();
     let bought = worth(&rounds.by_gain());
     let merges = match (&prices, bought.checked_sub(free)) {
-        (Some(prices), Some(paths)) => prices.to_free(paths).map_or(0, |(_, merges)| merges),
+        (Some(prices), Some(paths)) => prices.merges_to_free(paths),
         _ => 0,
     };
     let merged = (merges > 0).then(|| {
-        let cut = Arc::new(trade.hierarchy.cut(&target, regions - merges));
-        let fine_to_cut = region_map(&fine, &cut);
         let coarse = scene.paths()[..start].iter().filter(|placed| placed.origin == Origin::Coarse);
         let coarse = coarse.filter_map(|placed| match (&placed.shape, placed.region) {
             (Shape::Path(path), Some(region)) => Some((region, *path)),
             _ => None,
         });
-        let (mut merged, _) = draw_on_cut(&target, &fine, cut, trade.tolerance, coarse);
+        let (mut merged, _) = market.redraw(&target, &fine, regions - merges, coarse);
+        let fine_to_cut = crate::budget::region_map(&fine, merged.segmentation());
         // As many of E_r's paths as the merged drawing leaves room for, the largest gains.
         let mut chosen = vec![false; rounds.gains.len()];
         ranked.iter().take(budget.saturating_sub(merged.len())).for_each(|&i| chosen[i] = true);
@@ -237,11 +191,9 @@ pub fn draw_refinement_traded(
     rounds.tally(scene, before)
 }
 
-/// How many regions E_r's trade asks about first when no free path needs more: on data/eval's
-/// photos, and at small budgets, it buys nothing, and on a 2-core CPU its pass over 1, 2, 4 and
-/// 8 crops takes about 9, 15, 24 and 53 ms. A probe of 1 draws data/eval as a probe of 2 did (31
-/// emoji at 500 / 2000 paths with E_c off: 43.27 / 57.27 against 43.26 / 57.27 dB, the photos
-/// the same to the hundredth), in 11 ms of networks an emoji instead of 15.
+/// How many regions E_r's trade asks about first when no free path needs more: where it buys
+/// nothing (photos, small budgets) this probe is all it costs, and a larger one drew no more
+/// (docs/method.md).
 pub const FIRST_PROBE: usize = 1;
 
 /// E_r's rounds over one drawing: which regions are done with, their crops, and what it proposed
@@ -278,12 +230,11 @@ impl Rounds {
     /// proposed for (0: none was left, or the scene was full).
     fn next(
         &mut self,
+        context: &Context,
         proposer: Proposer<'_>,
-        config: &ModelConfig,
         scene: &mut Scene,
         count: usize,
         limit: usize,
-        device: &Device,
     ) -> usize {
         if scene.len() >= limit {
             return 0;
@@ -297,7 +248,7 @@ impl Rounds {
         let clock = Instant::now();
         for &r in &worst {
             if self.crops[r as usize].is_none() {
-                self.crops[r as usize] = Some(scene.region_crop(config, r));
+                self.crops[r as usize] = Some(scene.region_crop(context.config, r));
             }
         }
         let chosen: Vec<&RegionCrop> =
@@ -307,7 +258,7 @@ impl Rounds {
             return 0;
         }
         let (width, height) = scene.target().dimensions();
-        let proposals = proposer.propose(config, scene, &chosen, device);
+        let proposals = proposer.propose(context, scene, &chosen);
         self.network += clock.elapsed().as_secs_f64();
         for ((&region, crop), paths) in worst.iter().zip(&chosen).zip(proposals) {
             let mut kept = 0;
@@ -346,20 +297,5 @@ impl Rounds {
         let kept = scene.counts().refine;
         let gain_db = if kept > 0 { 10.0 * (before / scene.total_error()).log10() } else { 0.0 };
         RefineTally { proposed: self.proposed, kept, gain_db, network_seconds: self.network }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn refiners_parse_as_the_command_line_writes_them() {
-        assert_eq!("network".parse(), Ok(Refiner::Network));
-        assert_eq!("optimizer".parse(), Ok(Refiner::Optimizer { steps: OPTIMIZER_STEPS }));
-        assert_eq!("optimizer:40".parse(), Ok(Refiner::Optimizer { steps: 40 }));
-        for bad in ["optimizer:0", "optimizer:", "optimizer:x", "network:3", "e_r", ""] {
-            assert_eq!(bad.parse::<Refiner>(), Err(RefinerParseError(bad.into())), "{bad}");
-        }
     }
 }

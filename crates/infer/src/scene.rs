@@ -199,7 +199,7 @@ impl Scene {
 
     /// Paints `placed` over everything drawn so far and keeps it only if the squared error
     /// over the `scope` pixels of its box drops by more than rounding to 8 bits could make it
-    /// drop ([`ROUNDING_GAIN`] a pixel judged); otherwise the canvas is restored. Returns how
+    /// drop (`ROUNDING_GAIN` a pixel judged); otherwise the canvas is restored. Returns how
     /// much it dropped when the path was kept, `None` otherwise.
     pub fn try_push(&mut self, placed: Placed, scope: Scope<'_>) -> Option<f64> {
         let bbox = self.pixel_box(&placed.shape)?;
@@ -464,6 +464,61 @@ pub(crate) fn pixel_error(data: &[u8], index: usize, target: &Rgb<f32>) -> f64 {
     let i = 4 * index;
     let alpha = data[i + 3];
     (0..3).map(|c| (over_white(data[i + c], alpha) - target.0[c]).powi(2) as f64).sum()
+}
+
+/// A path that lowered the error where it was tried ([`paint_with`]).
+pub(crate) struct Tried {
+    /// The error it took away.
+    pub(crate) gain: f64,
+    /// The region it was drawn for.
+    pub(crate) region: u32,
+    /// The path, in its fitted colour.
+    pub(crate) path: Path,
+}
+
+impl Tried {
+    /// Its place in `scene`, which holds it.
+    pub(crate) fn position(&self, scene: &Scene) -> usize {
+        let shape = Shape::Path(self.path);
+        scene
+            .paths()
+            .iter()
+            .position(|placed| placed.region == Some(self.region) && placed.shape == shape)
+            .expect("a path kept is in the scene")
+    }
+}
+
+/// Tries each of E_c's `proposals[region]` on `scene`, a drawing whose regions come in
+/// painter's order `order` (their fallback paths, and E_c paths kept before): a path goes in
+/// right after its region's paths, in its least-squares colour over what is drawn, if it
+/// lowers the error over the pixels of the regions up to its own (later regions cover the
+/// rest). It is judged painted over the drawing as it is, later regions and all: over those
+/// pixels they differ from the drawing at its place in painter's order only along their
+/// anti-aliased edges, and nothing is painted again but, once per region, the boxes of the
+/// paths it kept. Returns the paths kept.
+pub(crate) fn paint_with(scene: &mut Scene, order: &[u32], mut proposals: Vec<Vec<Path>>) -> Vec<Tried> {
+    let mut painted = vec![false; order.len()];
+    let mut kept = Vec::new();
+    let mut next = 1; // past the background
+    for &region in order {
+        painted[region as usize] = true;
+        while next < scene.len() && scene.paths()[next].region == Some(region) {
+            next += 1;
+        }
+        let before = scene.len();
+        for path in std::mem::take(&mut proposals[region as usize]) {
+            let scope = Scope::Regions(&painted);
+            let path = scene.fit_colour(&path, scope).unwrap_or(path);
+            let placed = Placed { shape: path.into(), region: Some(region), origin: Origin::Coarse };
+            if let Some(gain) = scene.try_push(placed, scope) {
+                kept.push(Tried { gain, region, path });
+            }
+        }
+        let added = scene.len() - before;
+        scene.move_last(added, next);
+        next += added;
+    }
+    kept
 }
 
 #[cfg(test)]

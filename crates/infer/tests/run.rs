@@ -5,8 +5,7 @@
 use burn::tensor::Device;
 use common::Loaded;
 use image::{Rgb, Rgb32FImage};
-use infer::models::Identity;
-use infer::{AutoBudget, BudgetSplit, Job, Models, PathBudget, VectorizeError, run};
+use infer::{AutoRule, Identity, InvalidJob, Job, Models, PathBudget, Split, VectorizeError, run};
 use model::OperatingPoint;
 
 mod support;
@@ -92,14 +91,14 @@ fn paths_cover_every_pixel_at_any_budget_and_region_count() {
 #[test]
 fn the_papers_inference_draws_without_fallbacks_within_the_budget() {
     let (models, image, device) = (models(true), photo(), Device::flex());
-    let paper = |paths| Job { operating_point: BudgetSplit::Paper, ..job(paths) };
+    let paper = |paths| Job { operating_point: Split::Paper, ..job(paths) };
     for budget in [2, 40, 200] {
         let outcome = run(&models, &image, &paper(budget), &device).unwrap();
         let (report, stages) = (&outcome.report, outcome.report.paths_by_stage);
         assert_eq!((stages.background, stages.fallback), (1, 0), "{budget}: {stages:?}");
         assert!(report.paths <= budget, "{budget}: {} paths", report.paths);
         assert!(stages.coarse + stages.refine > 0, "{budget}: the networks drew nothing");
-        assert_eq!(report.operating_point, BudgetSplit::Paper);
+        assert_eq!(report.operating_point, Split::Paper);
         assert_eq!(report.refinement.kept, stages.refine, "E_r's paths are all appended");
         assert_eq!(uncovered(&outcome.svg, 96, 64), 0, "{budget}");
         if budget < 64 {
@@ -111,9 +110,12 @@ fn the_papers_inference_draws_without_fallbacks_within_the_budget() {
     }
     for refused in [
         Job { regions: Some(5), ..paper(40) },
-        Job { paths: PathBudget::Auto(AutoBudget::default()), ..paper(40) },
+        Job { paths: PathBudget::Auto(AutoRule::default()), ..paper(40) },
     ] {
-        assert_eq!(run(&models, &image, &refused, &device).err(), Some(VectorizeError::PaperNeedsCount));
+        assert_eq!(
+            run(&models, &image, &refused, &device).err(),
+            Some(VectorizeError::Invalid(InvalidJob::PaperNeedsCount))
+        );
     }
 }
 
@@ -123,7 +125,7 @@ fn the_papers_inference_draws_without_fallbacks_within_the_budget() {
 fn the_report_tallies_what_e_r_proposed_and_kept() {
     let (both, image, device) = (models(true), photo(), Device::flex());
     let point = OperatingPoint { coarse_share: 0.0, refine_share: 0.5 };
-    let split = Job { operating_point: BudgetSplit::Point(point), ..job(100) };
+    let split = Job { operating_point: Split::Point(point), ..job(100) };
     let outcome = run(&both, &image, &split, &device).unwrap();
     let (tally, stages) = (outcome.report.refinement, outcome.report.paths_by_stage);
     assert_eq!(tally.kept, stages.refine);
@@ -151,24 +153,27 @@ fn an_automatic_budget_gives_flat_art_few_paths_and_takes_no_region_count() {
     let flat = Loaded::from_image(Rgb32FImage::from_fn(80, 60, |x, _| {
         if x < 40 { Rgb([0.8, 0.1, 0.1]) } else { Rgb([0.1, 0.15, 0.85]) }
     }));
-    let auto = Job { paths: PathBudget::Auto(AutoBudget::default()), ..Job::default() };
+    let auto = Job { paths: PathBudget::Auto(AutoRule::default()), ..Job::default() };
     let outcome = run(&models, &flat, &auto, &device).unwrap();
     // Two flat halves are drawn exactly by two regions: the first rung of the ladder.
     assert_eq!(outcome.report.budget, 8, "two flat halves got a budget of {}", outcome.report.budget);
     assert!(outcome.report.auto_budget && outcome.report.paths <= 8);
     let refused = run(&models, &flat, &Job { regions: Some(5), ..auto }, &device).err();
-    assert_eq!(refused, Some(VectorizeError::RegionsWithAuto));
+    assert_eq!(refused, Some(VectorizeError::Invalid(InvalidJob::RegionsWithAuto)));
 }
 
 #[test]
 fn budgets_and_region_counts_out_of_range_are_errors() {
     let (models, image, device) = (models(false), photo(), Device::flex());
     for paths in [0, 1, infer::MAX_PATHS + 1] {
-        assert_eq!(run(&models, &image, &job(paths), &device).err(), Some(VectorizeError::Budget(paths)));
+        assert_eq!(
+            run(&models, &image, &job(paths), &device).err(),
+            Some(VectorizeError::Invalid(InvalidJob::Budget(paths)))
+        );
     }
     for regions in [0, 40, 41] {
         let err = run(&models, &image, &Job { regions: Some(regions), ..job(40) }, &device).err();
-        assert_eq!(err, Some(VectorizeError::Regions { regions, paths: 40 }));
+        assert_eq!(err, Some(VectorizeError::Invalid(InvalidJob::Regions { regions, paths: 40 })));
     }
     // More regions than the image has room for: drawn with fewer, and said.
     let tiny = Loaded::from_image(Rgb32FImage::from_pixel(8, 8, Rgb([0.3, 0.3, 0.3])));
@@ -180,11 +185,11 @@ fn budgets_and_region_counts_out_of_range_are_errors() {
 
 #[test]
 fn no_fine_tuning_step_is_no_fine_tuning() {
-    use infer::finetune::{Budget, FinetuneOptions};
+    use infer::{FinetuneOptions, Limit};
     let (models, image, device) = (models(true), photo(), Device::flex());
     let plain = run(&models, &image, &job(30), &device).unwrap();
-    for budget in [Budget::Steps(0), Budget::Seconds(0.0)] {
-        let finetune = Some(FinetuneOptions { budget, ..FinetuneOptions::default() });
+    for budget in [Limit::Steps(0), Limit::Seconds(0.0)] {
+        let finetune = Some(FinetuneOptions { limit: budget, ..FinetuneOptions::default() });
         let tuned = run(&models, &image, &Job { finetune, ..job(30) }, &device).unwrap();
         assert!(tuned.svg == plain.svg, "{budget:?} changed the drawing");
         assert_eq!(tuned.report.finetune_steps, Some(0));
@@ -223,16 +228,16 @@ fn curves_cover_every_pixel_and_a_looser_tolerance_writes_fewer_bytes() {
 /// and draws better than the (untrained) E_r given the same share.
 #[test]
 fn the_optimizer_refines_in_place_of_e_r() {
-    use infer::refine::Refiner;
+    use infer::Refiner;
     let (image, device) = (photo(), Device::flex());
     let point = OperatingPoint { coarse_share: 0.0, refine_share: 0.3 };
-    let split = |refiner| Job { operating_point: BudgetSplit::Point(point), refiner, ..job(40) };
+    let split = |refiner| Job { operating_point: Split::Point(point), refiner, ..job(40) };
     let optimizer = Refiner::Optimizer { steps: 30 };
     let e_r = run(&models(true), &image, &split(Refiner::Network), &device).unwrap().report;
     let with_e_r = run(&models(true), &image, &split(optimizer), &device).unwrap().report;
     let optimized = run(&models(false), &image, &split(optimizer), &device).unwrap().report;
     assert_eq!((optimized.psnr, optimized.paths), (with_e_r.psnr, with_e_r.paths), "E_r plays no part");
-    assert_eq!(optimized.operating_point, BudgetSplit::Point(point));
+    assert_eq!(optimized.operating_point, Split::Point(point));
     assert!(optimized.paths_by_stage.refine > 0 && optimized.paths <= 40, "{:?}", optimized.paths_by_stage);
     assert!(optimized.refinement.gain_db > 0.0 && optimized.psnr > e_r.psnr, "{optimized:?} against {e_r:?}");
 }

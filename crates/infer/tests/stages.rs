@@ -8,16 +8,19 @@ use burn::tensor::Device;
 use common::decode::load;
 use common::psnr;
 use image::{Rgb, Rgb32FImage};
-use infer::coarse::{CoarseBudget, Pricing, Trade, draw_coarse};
-use infer::fallback::{FallbackDrawing, fitted_path};
-use infer::finetune::{Budget, FinetuneOptions, Progress, finetune, finetune_with_progress};
-use infer::models::Models;
-use infer::refine::{Proposer, draw_refinement, draw_refinement_traded};
-use infer::scene::{Origin, Scene};
-use infer::segmentation::Segmented;
+use infer::budget::{CoarseShare, Market, Pricing};
+use infer::stages::{FallbackDrawing, Proposer, Segmented, draw_coarse, draw_refinement, fitted_path};
+use infer::{
+    Context, FinetuneOptions, Limit, Models, Origin, Progress, Scene, finetune, finetune_with_progress,
+};
 use rand::SeedableRng;
 use raster::Shape;
 use superpixel::{Hierarchy, SegmentOptions, segment};
+
+/// The stages' context: the models' configuration, 16 crops a call.
+fn context<'a>(models: &'a Models, device: &'a Device) -> Context<'a> {
+    Context { config: &models.config, batch: 16, device }
+}
 
 fn images() -> Vec<Rgb32FImage> {
     let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
@@ -44,13 +47,13 @@ fn no_stage_lowers_the_psnr() {
 
         let drawing = FallbackDrawing::new(&image, &segmentation, None);
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
-        let no_coarse = CoarseBudget { paths: 0, total: 45, trade: None };
-        draw_coarse(&models.coarse, &models.config, &mut fallback, drawing.clone(), no_coarse, 16, &device);
+        let no_coarse = CoarseShare { paths: 0, total: 45, market: None };
+        draw_coarse(&models.coarse, &context(&models, &device), &mut fallback, drawing.clone(), no_coarse);
 
         // A budget of 3 E_c paths keeps (at most) the 3 that helped most: never more.
         let mut few = Scene::new(image.clone(), segmentation.clone());
-        let three = CoarseBudget { paths: 3, total: 45, trade: None };
-        draw_coarse(&models.coarse, &models.config, &mut few, drawing.clone(), three, 16, &device);
+        let three = CoarseShare { paths: 3, total: 45, market: None };
+        draw_coarse(&models.coarse, &context(&models, &device), &mut few, drawing.clone(), three);
         let few_coarse = few.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
         assert!((1..=3).contains(&few_coarse), "{few_coarse} E_c paths for a budget of 3");
         assert!(
@@ -61,13 +64,13 @@ fn no_stage_lowers_the_psnr() {
         );
 
         let mut scene = Scene::new(image.clone(), segmentation);
-        let coarse_budget = CoarseBudget { paths: 24, total: 45, trade: None };
-        draw_coarse(&models.coarse, &models.config, &mut scene, drawing, coarse_budget, 16, &device);
+        let coarse_budget = CoarseShare { paths: 24, total: 45, market: None };
+        draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, coarse_budget);
         let after_coarse = score(&scene);
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
         assert!(scene.len() <= 45);
 
-        draw_refinement(Proposer::Network(refine), &models.config, &mut scene, budget, 16, &device);
+        draw_refinement(&context(&models, &device), Proposer::Network(refine), &mut scene, budget, None);
         let after_refine = score(&scene);
         assert!(after_refine >= after_coarse, "refinement {after_refine} < coarse {after_coarse}");
         assert!(scene.len() <= budget);
@@ -78,7 +81,7 @@ fn no_stage_lowers_the_psnr() {
             "the stages kept {coarse_kept} and {refined} paths: nothing was compared"
         );
 
-        let options = FinetuneOptions { budget: Budget::Steps(10), ..FinetuneOptions::default() };
+        let options = FinetuneOptions { limit: Limit::Steps(10), ..FinetuneOptions::default() };
         finetune(&mut scene, &options);
         let after_finetune = score(&scene);
         assert!(after_finetune >= after_refine, "fine-tuning {after_finetune} < refinement {after_refine}");
@@ -123,9 +126,9 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
                 &image,
             );
             let mut scene = Scene::new(image.clone(), segmentation);
-            let trade = Trade { hierarchy: &hierarchy, tolerance: None, pricing };
-            let budget = CoarseBudget { paths: 48, total, trade: Some(trade) };
-            draw_coarse(&models.coarse, &models.config, &mut scene, drawing, budget, 16, &device);
+            let market = Market { hierarchy: &hierarchy, tolerance: None, pricing };
+            let budget = CoarseShare { paths: 48, total, market: Some(market) };
+            draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, budget);
             let drawn = psnr(&scene.canvas_image(), &image);
             let coarse = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
             assert!(
@@ -147,15 +150,8 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
             bought += coarse;
 
             let (before, regions, free) = (drawn, scene.segmentation().regions.len(), total - scene.len());
-            let tally = draw_refinement_traded(
-                Proposer::Network(refine),
-                &models.config,
-                &mut scene,
-                total,
-                trade,
-                16,
-                &device,
-            );
+            let context = context(&models, &device);
+            let tally = draw_refinement(&context, Proposer::Network(refine), &mut scene, total, Some(market));
             let after = psnr(&scene.canvas_image(), &image);
             let refined = scene.counts().refine;
             assert!(
@@ -190,8 +186,8 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let mut scene = Scene::new(image.clone(), segmentation.clone());
     let models = Models::bundled(false, &device).unwrap();
     let drawing = FallbackDrawing::new(&image, &segmentation, None);
-    let no_coarse = CoarseBudget { paths: 0, total: regions + 1, trade: None };
-    draw_coarse(&models.coarse, &models.config, &mut scene, drawing, no_coarse, 16, &device);
+    let no_coarse = CoarseShare { paths: 0, total: regions + 1, market: None };
+    draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, no_coarse);
     // Fine-tuning moves paths: a drawing of paths alone (the traced regions, each fitted with
     // one path, as fine-tuning itself starts from them) is what it must improve on.
     let size = image.dimensions();
@@ -207,7 +203,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let before = psnr(&scene.canvas_image(), &image);
 
     let mut reports: Vec<Progress> = Vec::new();
-    let options = FinetuneOptions { budget: Budget::Steps(20), ..FinetuneOptions::default() };
+    let options = FinetuneOptions { limit: Limit::Steps(20), ..FinetuneOptions::default() };
     let steps = finetune_with_progress(&mut scene, &options, &mut |p| {
         reports.push(*p);
         ControlFlow::Continue(())

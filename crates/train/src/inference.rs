@@ -16,12 +16,8 @@ use std::sync::Arc;
 use burn::tensor::Device;
 use common::Loaded;
 use image::Rgb32FImage;
-use infer::fallback::FallbackDrawing;
-use infer::models::Identity;
-use infer::refine::{OPTIMIZER_STEPS, Proposer, draw_refinement};
-use infer::scene::Scene;
-use infer::segmentation::{Segmented, hierarchy, max_regions};
-use infer::{BudgetSplit, Job, MAX_PATHS, Models, PathBudget};
+use infer::stages::{FallbackDrawing, Proposer, Segmented, draw_refinement, hierarchy, max_regions};
+use infer::{Context, Identity, Job, MAX_PATHS, Models, OPTIMIZER_STEPS, PathBudget, Scene, Split};
 use model::{CoarseModel, ModelConfig, OperatingPoint, PathOptimizer, RefineModel};
 use serde::Serialize;
 
@@ -106,15 +102,10 @@ impl RefineCheck {
             let scene = Scene::drawn(image, segmentation, fallback.placed(), fallback.canvas);
             let optimizer = PathOptimizer { paths: model.refine_paths, steps: OPTIMIZER_STEPS };
             let budget = scene.len() + extra;
-            let optimizer_db = draw_refinement(
-                Proposer::Optimizer(optimizer),
-                model,
-                &mut scene.clone(),
-                budget,
-                BATCH,
-                &Device::flex(),
-            )
-            .gain_db;
+            let context = Context { config: model, batch: BATCH, device: &Device::flex() };
+            let optimizer_db =
+                draw_refinement(&context, Proposer::Optimizer(optimizer), &mut scene.clone(), budget, None)
+                    .gain_db;
             cases.push(Case { scene, extra, regions_db, optimizer_db });
         }
         Ok(Some(Self { cases, config: model.clone() }))
@@ -127,8 +118,8 @@ impl RefineCheck {
         for case in &self.cases {
             let mut scene = case.scene.clone();
             let budget = scene.len() + case.extra;
-            let tally =
-                draw_refinement(Proposer::Network(model), &self.config, &mut scene, budget, BATCH, device);
+            let context = Context { config: &self.config, batch: BATCH, device };
+            let tally = draw_refinement(&context, Proposer::Network(model), &mut scene, budget, None);
             scores.proposed += tally.proposed;
             scores.kept += tally.kept;
             scores.gain_db += tally.gain_db;
@@ -210,7 +201,7 @@ impl CoarseCheck {
         for (image, budget, psnr_regions) in &self.images {
             let job = Job {
                 paths: PathBudget::Count(*budget),
-                operating_point: BudgetSplit::Point(self.point),
+                operating_point: Split::Point(self.point),
                 compactness: self.compactness,
                 batch: BATCH,
                 ..Job::default()

@@ -30,10 +30,10 @@ use eval::peers::{
 use eval::rate::{RatePoint, at, frontier};
 use eval::spill::spill;
 use image::{Rgb32FImage, RgbImage};
-use infer::finetune::{Budget as FinetuneBudget, FinetuneOptions};
-use infer::refine::{OPTIMIZER_STEPS, RefineTally, Refiner};
-use infer::scene::{Origin, StageCounts};
-use infer::{AutoBudget, BudgetSplit, Job, MAX_PATHS, Outcome, PathBudget, run};
+use infer::{AutoRule, Job, MAX_PATHS, Outcome, PathBudget, Split, run};
+use infer::{FinetuneOptions, Limit};
+use infer::{OPTIMIZER_STEPS, RefineTally, Refiner};
+use infer::{Origin, StageCounts};
 use raster::Backend;
 
 /// What `--peers` can add beside SuperSVG.
@@ -109,8 +109,8 @@ struct Args {
     /// How SuperSVG-B splits each budget (`infer --operating-point`): `stored`, or
     /// `COARSE,REFINE` shares (`0,0.1` gives E_r a tenth; the `no-refine` row then shows what it
     /// is worth). The paper's inference is the `paper` peer.
-    #[arg(long, default_value = "stored", value_parser = str::parse::<BudgetSplit>)]
-    operating_point: BudgetSplit,
+    #[arg(long, default_value = "stored", value_parser = str::parse::<Split>)]
+    operating_point: Split,
     /// SuperSVG's regions drawn along shared boundary curves fitted within this many pixels
     /// (`infer --tolerance`, 0 to 8), in every drawing of ours; by default traced polygons.
     #[arg(long)]
@@ -267,7 +267,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     if let Some(seconds) = args.finetune_secs.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         bail!("--finetune-secs: {seconds} is not a number of seconds");
     }
-    if args.operating_point == BudgetSplit::Paper {
+    if args.operating_point == Split::Paper {
         bail!("--operating-point paper: the paper's inference is a peer here (--peers paper)");
     }
     if let Some(tolerance) = args.tolerance.filter(|t| !(0.0..=8.0).contains(t)) {
@@ -438,8 +438,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 continue;
             }
             if let Some(limit) = args.finetune_secs {
-                let options =
-                    FinetuneOptions { budget: FinetuneBudget::Seconds(limit), ..FinetuneOptions::default() };
+                let options = FinetuneOptions { limit: Limit::Seconds(limit), ..FinetuneOptions::default() };
                 let tuned = outcome.finetuned(&loaded, &job, &options, &mut |_| ControlFlow::Continue(()))?;
                 let (drawn, seconds, anatomy) = ours(table, Method::OursF, &tuned);
                 record(table, Method::OursF, &drawn, seconds, anatomy, &mut tiles);
@@ -450,7 +449,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 record(table, Method::OursNoRefine, &drawn, seconds, anatomy, &mut tiles);
             }
             if wanted(Peer::Paper) {
-                let paper = Job { operating_point: BudgetSplit::Paper, ..job.clone() };
+                let paper = Job { operating_point: Split::Paper, ..job.clone() };
                 let outcome = run(&models, &loaded, &paper, &device)?;
                 let (drawn, seconds, anatomy) = ours(table, Method::OursPaper, &outcome);
                 record(table, Method::OursPaper, &drawn, seconds, anatomy, &mut tiles);
@@ -489,7 +488,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 record(table, Method::Vtracer, &drawn, seconds, None, &mut tiles);
             }
         }
-        let auto = PathBudget::Auto(AutoBudget::default());
+        let auto = PathBudget::Auto(AutoRule::default());
         let job = Job {
             paths: auto,
             tolerance: args.tolerance,

@@ -18,8 +18,8 @@ use common::decode::load;
 use common::folder::files_in;
 use common::write::write_atomic;
 use eval::cli::{command_line, finish, load_models};
-use infer::scene::{Origin, StageCounts};
-use infer::{BudgetSplit, Job, PathBudget, run};
+use infer::{Job, PathBudget, Split, run};
+use infer::{Origin, StageCounts};
 use model::{Checkpoint, OperatingPoint};
 use raster::Backend;
 
@@ -134,7 +134,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
             for image in &images {
                 let job = Job {
                     paths: PathBudget::Count(paths),
-                    operating_point: BudgetSplit::Point(point),
+                    operating_point: Split::Point(point),
                     ..Job::default()
                 };
                 let report = run(&models, image, &job, &device)?.report;

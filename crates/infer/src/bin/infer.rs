@@ -16,10 +16,10 @@ use common::progress::Bar;
 use common::write::{folder_of, probe_folder, write_atomic, write_png};
 use common::{Loaded, WORKING_SIZES};
 use image::{Rgb32FImage, RgbImage};
-use infer::finetune::{Budget, FinetuneOptions, Progress};
-use infer::models::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, bundled};
-use infer::refine::Refiner;
-use infer::{BudgetSplit, Job, MAX_PATHS, Models, PathBudget, Report, run_with_progress};
+use infer::{
+    BUILT_IN_COARSE, BUILT_IN_REFINE, FinetuneOptions, Job, Limit, MAX_PATHS, ModelSource, Models,
+    PathBudget, Progress, Refiner, Report, Split, bundled, run_with_progress,
+};
 use raster::{Backend, MAX_DECIMALS, SvgOptions};
 use serde::Serialize;
 
@@ -83,8 +83,8 @@ struct Args {
     /// keeps, e.g. `0.2,0.1`), or `paper`: the paper's inference for models trained with the
     /// paper preset (budget/64 SLIC regions, every visible E_c path, one pass of E_r over a
     /// second SLIC; no fallback paths, no acceptance test; a background path under all).
-    #[arg(long, default_value = "stored", value_parser = str::parse::<BudgetSplit>)]
-    operating_point: BudgetSplit,
+    #[arg(long, default_value = "stored", value_parser = str::parse::<Split>)]
+    operating_point: Split,
     /// Write a PNG rendering of the result (`.png` file, or a folder).
     #[arg(long)]
     preview: Option<PathBuf>,
@@ -147,10 +147,10 @@ fn catch_interrupts() {
 }
 
 /// A bar for SuperSVG-F on stderr: time or steps, with the running PSNR.
-fn finetune_bar(budget: Budget, shown: bool) -> Bar {
-    match budget {
-        Budget::Seconds(seconds) => Bar::new("fine-tuning", (seconds * 1000.0) as u64, "ms", shown),
-        Budget::Steps(steps) => Bar::new("fine-tuning", steps as u64, "steps", shown),
+fn finetune_bar(limit: Limit, shown: bool) -> Bar {
+    match limit {
+        Limit::Seconds(seconds) => Bar::new("fine-tuning", (seconds * 1000.0) as u64, "ms", shown),
+        Limit::Steps(steps) => Bar::new("fine-tuning", steps as u64, "steps", shown),
     }
 }
 
@@ -446,12 +446,12 @@ fn run(args: &Args) -> anyhow::Result<usize> {
     if let (PathBudget::Auto(_), Some(_)) = (args.paths, args.regions) {
         bail!("--regions needs a number of --paths, not auto");
     }
-    if args.operating_point == BudgetSplit::Paper
+    if args.operating_point == Split::Paper
         && (args.regions.is_some() || matches!(args.paths, PathBudget::Auto(_)))
     {
         bail!("--operating-point paper needs a number of --paths and cuts its own regions (no --regions)");
     }
-    if args.operating_point == BudgetSplit::Paper && args.refiner != Refiner::Network {
+    if args.operating_point == Split::Paper && args.refiner != Refiner::Network {
         bail!("--operating-point paper runs E_r as the paper does: it takes no --refiner");
     }
     let plan = plan(args)?;
@@ -479,10 +479,10 @@ fn run(args: &Args) -> anyhow::Result<usize> {
         eprintln!("models: coarse {coarse}, refine {refine}");
     }
     let keeps_none = match args.operating_point {
-        BudgetSplit::Stored => (models.operating_point.refine_share == 0.0)
+        Split::Stored => (models.operating_point.refine_share == 0.0)
             .then(|| format!("stored with {}", coarse.name().display())),
-        BudgetSplit::Point(point) => (point.refine_share == 0.0).then(|| "given".to_string()),
-        BudgetSplit::Paper => None,
+        Split::Point(point) => (point.refine_share == 0.0).then(|| "given".to_string()),
+        Split::Paper => None,
     };
     if let Some(which) = keeps_none.filter(|_| args.refine.is_some() || args.no_refine) {
         eprintln!(
@@ -491,14 +491,14 @@ fn run(args: &Args) -> anyhow::Result<usize> {
         );
     }
     let finetune = match (args.finetune_steps, args.finetune_secs) {
-        (Some(steps), _) => Some(Budget::Steps(steps as usize)),
-        (None, Some(seconds)) => Some(Budget::Seconds(seconds)),
+        (Some(steps), _) => Some(Limit::Steps(steps as usize)),
+        (None, Some(seconds)) => Some(Limit::Seconds(seconds)),
         (None, None) => None,
     };
     let job = Job {
         paths: args.paths,
         regions: args.regions.map(|r| r as usize),
-        finetune: finetune.map(|budget| FinetuneOptions { budget, ..FinetuneOptions::default() }),
+        finetune: finetune.map(|limit| FinetuneOptions { limit, ..FinetuneOptions::default() }),
         svg: SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() },
         tolerance: args.tolerance,
         operating_point: args.operating_point,
@@ -561,7 +561,7 @@ fn process(
             decode(&bytes, "<stdin>", &options)?
         }
     };
-    let tuning = job.finetune.as_ref().map(|f| finetune_bar(f.budget, !args.quiet && !bar.is_shown()));
+    let tuning = job.finetune.as_ref().map(|f| finetune_bar(f.limit, !args.quiet && !bar.is_shown()));
     let mut show = |progress: &Progress| {
         if let Some(tuning) = &tuning {
             match progress.total_steps {

@@ -5,8 +5,8 @@ use std::sync::Arc;
 
 use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
-use infer::scene::Scene;
-use infer::segmentation::{Segmented, hierarchy, max_regions};
+use infer::Scene;
+use infer::stages::{Segmented, hierarchy, max_regions};
 use model::{CropBatch, MIN_REGION_PIXELS, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
