@@ -28,8 +28,7 @@ pub fn render_exact<F: Filled>(paths: &[F], width: u32, height: u32, background:
 /// Paints `path` (unit-square coordinates of a `canvas` = (width, height) image) over `pixmap`,
 /// which holds that image or the part of it whose top-left pixel is `origin`: painting a box
 /// of a canvas gives the pixels painting the whole canvas gives there, but for a few pixels of
-/// anti-aliased edges (tiny-skia's coverage strips depend on the pixmap; measured: 43 dB, at
-/// most 19 levels). Returns false, painting
+/// anti-aliased edges (tiny-skia's coverage strips depend on the pixmap). Returns false, painting
 /// nothing, for a path that cannot be drawn (α ≤ 0, a non-finite number).
 pub fn paint_exact(
     pixmap: &mut Pixmap,

@@ -5,10 +5,6 @@
 //! encloses and the fitting of outlines all take their weights from [`bernstein`], their
 //! tangents from [`cubic_derivative`] and their straight segments from [`straight_cubic`].
 
-use crate::path::{Path, SEGMENTS};
-#[cfg(test)]
-use crate::shape::Filled;
-
 /// The cubic Bernstein weights at `t`: `[(1−t)³, 3(1−t)²t, 3(1−t)t², t³]`.
 pub fn bernstein(t: f32) -> [f32; 4] {
     let s = 1.0 - t;
@@ -41,29 +37,11 @@ pub fn straight_cubic(a: [f32; 2], b: [f32; 2]) -> [[f32; 2]; 4] {
     [a, at(1.0 / 3.0), at(2.0 / 3.0), b]
 }
 
-impl Path {
-    /// The polygon of `steps` points per cubic (start of the cubic included, end left to the
-    /// next one), `4 · steps` points in order: the path as straight edges.
-    pub fn flatten(&self, steps: usize) -> Vec<[f32; 2]> {
-        let steps = steps.max(1);
-        let mut points = Vec::with_capacity(SEGMENTS * steps);
-        for j in 0..SEGMENTS {
-            let control = self.segment(j);
-            points.extend((0..steps).map(|i| cubic_point(&control, i as f32 / steps as f32)));
-        }
-        points
-    }
-
-    /// The area the path encloses in the canvas's unit square ([`common::signed_area`] of its
-    /// outline flattened to 16 edges per cubic).
-    pub fn signed_area(&self) -> f32 {
-        common::signed_area(&self.flatten(16))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::path::Path;
+    use crate::shape::Filled;
 
     fn square(lo: f32, hi: f32) -> Path {
         Path::quadrilateral([[lo, lo], [hi, lo], [hi, hi], [lo, hi]], [0.0; 3], 1.0)

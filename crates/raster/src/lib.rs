@@ -3,6 +3,7 @@
 //! export, and the choice of compute backend.
 
 mod adam;
+mod decimals;
 pub mod device;
 mod exact;
 mod exact_batch;
@@ -16,6 +17,7 @@ mod soft;
 mod svg;
 
 pub use adam::PathAdam;
+pub use decimals::{Decimals, MAX_DECIMALS};
 pub use device::{Backend, BackendError};
 pub use exact::{coverage_exact, coverage_exact_window, paint_exact, render_exact, skia_outline};
 pub use exact_batch::ExactBatch;
@@ -28,4 +30,4 @@ pub use shapes::{random_blob, random_scene};
 pub use soft::{
     SoftRasterOptions, coverage_soft, paint_soft, paint_soft_with_union, render_soft, render_soft_with_union,
 };
-pub use svg::{Decimals, MAX_DECIMALS, SvgError, SvgOptions, to_svg, to_svg_with};
+pub use svg::{SvgError, SvgOptions, to_svg, to_svg_with};

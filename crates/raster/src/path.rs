@@ -12,7 +12,7 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 
-use crate::geometry::straight_cubic;
+use crate::geometry::{cubic_point, straight_cubic};
 
 /// Number of control points of a path.
 pub const POINTS: usize = 12;
@@ -234,6 +234,26 @@ impl PathBatch {
     /// The same parameters cut from the autodiff graph.
     pub fn detach(&self) -> Self {
         Self::new(self.params.clone().detach())
+    }
+}
+
+impl Path {
+    /// The polygon of `steps` points per cubic (start of the cubic included, end left to the
+    /// next one), `4 · steps` points in order: the path as straight edges.
+    pub fn flatten(&self, steps: usize) -> Vec<[f32; 2]> {
+        let steps = steps.max(1);
+        let mut points = Vec::with_capacity(SEGMENTS * steps);
+        for j in 0..SEGMENTS {
+            let control = self.segment(j);
+            points.extend((0..steps).map(|i| cubic_point(&control, i as f32 / steps as f32)));
+        }
+        points
+    }
+
+    /// The area the path encloses in the canvas's unit square ([`common::signed_area`] of its
+    /// outline flattened to 16 edges per cubic).
+    pub fn signed_area(&self) -> f32 {
+        common::signed_area(&self.flatten(16))
     }
 }
 

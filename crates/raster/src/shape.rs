@@ -7,9 +7,9 @@ use std::sync::Arc;
 use common::{Bounds, PixelBox, signed_area};
 use tiny_skia::PathBuilder;
 
+use crate::decimals::Decimals;
 use crate::geometry::cubic_point;
 use crate::path::{Path, SEGMENTS};
-use crate::svg::Decimals;
 
 /// A closed outline filled with one colour, in the unit square of a canvas.
 pub trait Filled {

@@ -18,8 +18,7 @@ impl Segmentation {
     ///
     /// Merging by colour rather than by size matters: SLIC's smallest regions sit on
     /// high-contrast detail, and merging them away costs far more than joining two flat
-    /// neighbours (on a 512² photo, 520 regions cut to 499 by size lose 0.8 dB of mosaic PSNR;
-    /// 1000 cut to 499 by colour gain 1.4 dB over asking SLIC for 499). The compactness floor
+    /// neighbours (measured in docs/method.md, "Figures behind constants"). The compactness floor
     /// matters on flat art, where merges of one colour cost nothing and would otherwise chain
     /// cells into rings and snakes that one path cannot draw.
     ///
@@ -165,13 +164,10 @@ impl SegmentOptions {
     /// SLIC for [`WARD_OVERSEGMENT`] times the regions at a tenth of `compactness` (30 is the
     /// method's), unsmoothed, its fragments kept, then merged by colour with no compactness
     /// floor. The finer and the less regular the pieces merging starts from, the nearer Ward's
-    /// merges come to the least flat-fill error: on 12 photos and 20 emoji of data/train at 512
-    /// px, at 500 / 2000 regions, the flat fill draws 30.24 / 33.66 dB and 41.42 / 45.43 dB,
-    /// against 28.29 / 32.77 and 38.40 / 41.35 for 64 times the regions at a third of the
-    /// compactness with SLIC's smoothing and fragments joined to their left neighbours (the
-    /// previous recipe), in about half the time. Smoothing moves edges, joined fragments land in
-    /// whatever region lies left of them, and at a compactness of 10 the clusters stay rounder
-    /// than the colour areas.
+    /// merges come to the least flat-fill error (docs/segmentation.md measures each knob
+    /// against the previous recipe; docs/method.md has the figures). Smoothing moves edges,
+    /// joined fragments land in whatever region lies left of them, and at a compactness of 10
+    /// the clusters stay rounder than the colour areas.
     pub fn ward(compactness: f32) -> Self {
         Self {
             compactness: compactness / 10.0,
@@ -207,11 +203,9 @@ impl SegmentOptions {
     /// one colour ([`Segmentation::flat_areas`]) if `flat_areas` is set and they are no more
     /// than [`SegmentOptions::segments_for`] gives, else SLIC for that many segments.
     ///
-    /// On the first 4 emoji of data/eval (551–2081 areas; the 31 have up to 3438, where SLIC is
-    /// asked for 4000 segments at 500 regions) the fallback drawing of 500 / 2000 regions draws
-    /// 40.15–52.55 / 46.75–57.81 dB from the areas, against 39.95–48.69 / 42.82–49.62 from
-    /// SLIC, and segments in a third of the time. Photos have nearly as many areas as pixels
-    /// and keep SLIC.
+    /// Flat art's areas give the merges its exact edges, where SLIC's pieces straddle its
+    /// one-pixel anti-aliased ones (docs/method.md measures both). Photos have nearly as many
+    /// areas as pixels and keep SLIC.
     pub fn over_segment(&self, image: &Rgb32FImage, regions: usize) -> Result<Segmentation, SlicError> {
         if !(self.oversegment.is_finite() && self.oversegment >= 1.0) {
             return Err(SlicError::BadOption("oversegment must be at least 1"));
@@ -225,9 +219,8 @@ impl SegmentOptions {
     }
 }
 
-/// How many times the regions [`SegmentOptions::ward`] asks SLIC for: 4 draws 0.1–1.3 dB worse
-/// (photos, emoji) at 500 and 2000 regions, 16 no better on photos and worse on emoji, at up to
-/// twice the time.
+/// How many times the regions [`SegmentOptions::ward`] asks SLIC for: fewer pieces draw worse,
+/// more draw no better in more time (docs/method.md, "Figures behind constants").
 pub const WARD_OVERSEGMENT: f32 = 8.0;
 
 /// `image` split into at most `regions` superpixels: its over-segmentation for them
