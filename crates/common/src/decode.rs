@@ -23,6 +23,16 @@ const MAX_DECODED_PIXELS: u64 = 64 << 20;
 /// point and resized with a triangle filter, as before.
 const SHRINK_FACTOR: u64 = 4;
 
+/// The most bytes read from an input that cannot seek (stdin, a pipe, a device): such an input is
+/// read whole before decoding, so without a cap `/dev/zero` would fill memory. Regular files are
+/// read in place and need none.
+pub const MAX_STREAMED_BYTES: u64 = 256 << 20;
+
+/// The most bytes a PNG's chunks before its pixels (an ICC profile, text) may inflate to beyond
+/// what its pixels need: real profiles are kilobytes, and a crafted 1 MB file could otherwise
+/// ask for a gigabyte. A larger profile is dropped (the decoder's choice); the pixels are read.
+const MAX_PNG_METADATA_BYTES: u64 = 16 << 20;
+
 /// The long sides a working image may have: below 16 pixels no region can be cut at the
 /// models' crop sizes, and at 8192² the working image is already 64 Mpx of f32 canvases.
 pub const WORKING_SIZES: RangeInclusive<u32> = 16..=8192;
@@ -107,6 +117,12 @@ pub enum DecodeProblem {
         /// Their layout.
         layout: PixelLayout,
     },
+    /// An input that cannot seek, longer than [`MAX_STREAMED_BYTES`].
+    #[error(
+        "more than {} MiB from a stream (a pipe, stdin or a device); save it to a file first",
+        MAX_STREAMED_BYTES >> 20
+    )]
+    StreamTooLong,
     /// A PNG whose palette the decoder did not expand.
     #[error("unexpanded palette")]
     UnexpandedPalette,
@@ -163,14 +179,30 @@ pub fn open(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeError> {
     let fail = |problem| DecodeError { input: name.clone(), problem };
     let regular = std::fs::metadata(path).map_err(|err| fail(DecodeProblem::Io(err)))?.is_file();
     if !regular {
-        let mut bytes = Vec::new();
-        File::open(path)
-            .and_then(|mut f| f.read_to_end(&mut bytes))
-            .map_err(|err| fail(DecodeProblem::Io(err)))?;
+        let bytes = File::open(path).map_err(DecodeProblem::Io).and_then(read_stream).map_err(fail)?;
         return decode(&bytes, &name, options);
     }
     let reader = || File::open(path).map(BufReader::new);
     timed(|| read(reader, options)).map_err(fail)
+}
+
+/// The whole of a stream that holds an image (stdin, a pipe, a device), refused as soon as its
+/// first bytes are no image format this program reads, or once it passes [`MAX_STREAMED_BYTES`]:
+/// `/dev/zero` or an endless pipe ends with an error, not with memory full.
+pub fn read_stream(stream: impl Read) -> Result<Vec<u8>, DecodeProblem> {
+    /// Enough bytes for every format's signature.
+    const SIGNATURE: usize = 16;
+    let mut bytes = Vec::new();
+    let mut capped = stream.take(MAX_STREAMED_BYTES + 1);
+    (&mut capped).take(SIGNATURE as u64).read_to_end(&mut bytes).map_err(DecodeProblem::Io)?;
+    if bytes.len() == SIGNATURE && image::guess_format(&bytes).is_err() {
+        return Err(DecodeProblem::UnknownFormat);
+    }
+    capped.read_to_end(&mut bytes).map_err(DecodeProblem::Io)?;
+    if bytes.len() as u64 > MAX_STREAMED_BYTES {
+        return Err(DecodeProblem::StreamTooLong);
+    }
+    Ok(bytes)
 }
 
 /// Reads an image held in memory (a whole file's bytes), named `input` in errors.
@@ -193,8 +225,15 @@ fn read<R: BufRead + Seek>(
     let (long_side, allow_truncated, background) =
         (options.long_side, options.allow_truncated, options.background);
     let guessed = |r: R| ImageReader::new(r).with_guessed_format().map_err(DecodeProblem::Io);
-    let probe = guessed(reader().map_err(DecodeProblem::Io)?)?;
+    let mut probe = guessed(reader().map_err(DecodeProblem::Io)?)?;
     let format = probe.format().ok_or(DecodeProblem::UnknownFormat)?;
+    if format == ImageFormat::Png {
+        // The header is read up to the pixels, ICC profile included, which the PNG decoder
+        // inflates only within its memory limit (and drops beyond it): the header needs little.
+        let mut limits = Limits::default();
+        limits.max_alloc = Some(MAX_PNG_METADATA_BYTES);
+        probe.limits(limits);
+    }
     let (width, height) = probe.into_dimensions().map_err(DecodeProblem::Image)?;
     if width == 0 || height == 0 {
         return Err(DecodeProblem::Empty { width, height });
@@ -219,7 +258,10 @@ fn read<R: BufRead + Seek>(
     } else if pixels <= MAX_DECODED_PIXELS {
         let mut whole = guessed(reader().map_err(DecodeProblem::Io)?)?;
         let mut limits = Limits::default();
-        limits.max_alloc = Some(MAX_DECODED_PIXELS * 16);
+        // What the pixels need (16-bit RGBA, and a copy); a PNG's profile or text inflates only
+        // within the same limit, so a small image cannot carry a gigabyte of metadata.
+        let need = if format == ImageFormat::Png { pixels * 16 + MAX_PNG_METADATA_BYTES } else { u64::MAX };
+        limits.max_alloc = Some(need.min(MAX_DECODED_PIXELS * 16));
         whole.limits(limits);
         let mut decoder = whole.into_decoder().map_err(DecodeProblem::Image)?;
         // A camera's EXIF orientation (JPEG, WebP, TIFF): the picture as it is shown.
@@ -477,6 +519,19 @@ fn cover(source: u32, target: u32) -> Vec<Vec<(usize, f64)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn endless_streams_end_with_an_error() {
+        // /dev/zero: no image signature, refused after its first bytes.
+        assert!(matches!(read_stream(std::io::repeat(0)), Err(DecodeProblem::UnknownFormat)));
+        // A PNG's signature, then no end: refused at the cap, not when memory runs out.
+        let endless = Cursor::new(b"\x89PNG\r\n\x1a\n".to_vec()).chain(std::io::repeat(0));
+        assert!(matches!(read_stream(endless), Err(DecodeProblem::StreamTooLong)));
+        // What fits is read whole.
+        let mut png = Vec::new();
+        image::RgbImage::new(3, 2).write_to(&mut Cursor::new(&mut png), ImageFormat::Png).unwrap();
+        assert_eq!(read_stream(Cursor::new(&png)).unwrap(), png);
+    }
 
     #[test]
     fn exif_orientation_turns_the_picture() {

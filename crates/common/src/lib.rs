@@ -1,7 +1,8 @@
 //! The primitives every supersvg crate shares, each defined once: rectangles that cannot be
 //! inverted ([`Rect`]: pixel boxes and unit-square bounds), the area of a polygon, reading an image at the working
 //! resolution from a file, bytes or pixels ([`decode`]), listing a folder of inputs ([`folder`]), quality measures ([`metrics`]: MSE,
-//! PSNR, SSIM), writing files so that no partial or hijacked file is ever left ([`write`]),
+//! PSNR, SSIM), writing files so that no partial or hijacked file is ever left ([`write`]) and never over an
+//! input ([`outputs`]),
 //! line charts as SVG ([`chart`]), the command-line programs' progress bar ([`progress`], behind the `progress` feature)
 //! and their tests' helpers ([`testing`], behind the `testing` feature).
 
@@ -9,6 +10,7 @@ pub mod chart;
 pub mod decode;
 pub mod folder;
 pub mod metrics;
+pub mod outputs;
 mod polygon;
 #[cfg(feature = "progress")]
 pub mod progress;

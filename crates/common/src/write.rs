@@ -47,13 +47,28 @@ pub fn probe_folder(folder: &Path) -> std::io::Result<()> {
 /// someone is planting names there.
 const TEMPORARY_TRIES: usize = 16;
 
+/// The longest file name (bytes) the common file systems take: a longer output name is refused
+/// before any work instead of failing when the result is written.
+pub const NAME_MAX: usize = 255;
+
 /// A new file `.{stem}.{random}.tmp` in `folder`, created exclusively (`O_EXCL`: an existing
 /// file or link of that name is never opened, so a planted link is never followed), and its path.
+/// A stem too long for the name to fit [`NAME_MAX`] is cut short.
 pub fn create_temporary(folder: &Path, stem: &str) -> std::io::Result<(File, PathBuf)> {
+    let stem = shortened(stem, NAME_MAX - TEMPORARY_EXTRA);
     fresh(
         || folder.join(format!(".{stem}.{:016x}.tmp", random())),
         |path| OpenOptions::new().write(true).create_new(true).open(path),
     )
+}
+
+/// What a temporary's name adds to its stem: `.`, `.`, 16 hexadecimal digits and `.tmp`.
+const TEMPORARY_EXTRA: usize = 22;
+
+/// The longest start of `text` of at most `bytes` bytes that ends on a character.
+fn shortened(text: &str, bytes: usize) -> &str {
+    let end = (0..=bytes.min(text.len())).rev().find(|&end| text.is_char_boundary(end)).unwrap_or(0);
+    &text[..end]
 }
 
 /// A new folder `.{stem}.{random}` in `parent`, created exclusively (an existing folder or link
@@ -172,6 +187,10 @@ mod tests {
         assert!(first.is_dir() && std::fs::read_dir(&first).unwrap().count() == 0);
         assert!(first.file_name().unwrap().to_string_lossy().starts_with(".work."));
         assert!(create_temporary_folder(&dir.join("missing"), "work").is_err());
+        // A stem too long for the file system is cut short, on a character.
+        let (_, long) = create_temporary(&dir, &"é".repeat(200)).unwrap();
+        let name = long.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.len() <= NAME_MAX && name.starts_with(".éé"), "{}", name.len());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -7,9 +7,11 @@
 //! `supersvg.stage`, `supersvg.model` (the [`ModelConfig`] as JSON), `supersvg.training` (an
 //! opaque JSON string owned by the trainer) and `supersvg.inference` (the measured
 //! [`OperatingPoint`] as JSON, in coarse checkpoints that have one) and `supersvg.checksum` (of
-//! the model tensors: names, dtypes, shapes and bytes). Loading needs no flags: the configuration
-//! rebuilds the model before its weights are applied. Loading refuses a file whose weights do not
-//! match their checksum (damaged on disk or in transfer) or hold a NaN or infinity, naming it.
+//! the model tensors: names, dtypes, shapes and bytes) and `supersvg.state` (of everything else
+//! a run reads back: the stage, the JSON values and the optimizer's bytes). Loading needs no
+//! flags: the configuration rebuilds the model before its weights are applied. Loading refuses a
+//! file whose weights or state do not match their checksums (damaged on disk or in transfer) or
+//! whose weights hold a NaN or infinity, naming it.
 //! Writes are atomic (`common::write::write_atomic`), so an interrupted save never leaves a
 //! partial checkpoint.
 
@@ -25,8 +27,10 @@ use crate::config::{InvalidSetting, ModelConfig};
 use crate::operating::OperatingPoint;
 use crate::refine::RefineModel;
 
-const FORMAT: &str = "supersvg-checkpoint/2";
-/// The format before the weights' checksum: still read, without the check.
+const FORMAT: &str = "supersvg-checkpoint/3";
+/// The format with the weights' checksum alone: still read, the rest unchecked.
+const FORMAT_WEIGHTS_CHECKED: &str = "supersvg-checkpoint/2";
+/// The format before any checksum: still read, without the checks.
 const FORMAT_UNCHECKED: &str = "supersvg-checkpoint/1";
 const MODEL_PREFIX: &str = "model/";
 const OPTIMIZER_BLOB: &str = "optimizer";
@@ -45,6 +49,8 @@ mod key {
     pub const INFERENCE: &str = "supersvg.inference";
     /// [`super::checksum`] of the model tensors, 16 hex digits.
     pub const CHECKSUM: &str = "supersvg.checksum";
+    /// [`super::state_checksum`] of the rest, 16 hex digits.
+    pub const STATE: &str = "supersvg.state";
 }
 
 /// Which network a checkpoint holds.
@@ -176,6 +182,16 @@ pub enum FormatProblem {
         /// The checksum of the weights read.
         computed: String,
     },
+    /// The stage, configuration, trainer's state or optimizer state are not the ones written.
+    #[error(
+        "the training state does not match its checksum (stored {stored}, computed {computed}): the file is damaged"
+    )]
+    StateChecksum {
+        /// The checksum in the metadata.
+        stored: String,
+        /// The checksum of what was read.
+        computed: String,
+    },
     /// A weight is NaN or infinite: the model was saved from a diverged training.
     #[error("weight `{0}` holds a NaN or an infinity")]
     NonFinite(String),
@@ -251,17 +267,27 @@ impl Checkpoint {
             checksum(model_entries.map(|e| (e.name.strip_prefix(MODEL_PREFIX).unwrap_or(&e.name), &e.data)));
         let tensors = tensors.into_iter().map(Entry::into_pack).collect();
         let model_json = serde_json::to_string(&self.model_config).expect("configs serialize");
+        let inference =
+            self.inference.as_ref().map(|point| serde_json::to_string(point).expect("serializes"));
+        let state = state_checksum(State {
+            stage: self.stage.name(),
+            model: &model_json,
+            training: self.training.as_deref(),
+            inference: inference.as_deref(),
+            optimizer: self.optimizer.as_deref(),
+        });
         let mut writer = Writer::new(tensors)
             .with_metadata(key::FORMAT, FORMAT)
             .with_metadata(key::STAGE, self.stage.name())
             .with_metadata(key::MODEL, &model_json)
             .with_metadata(key::CHECKSUM, &sum)
+            .with_metadata(key::STATE, &state)
             .auto_extension(false);
         if let Some(training) = &self.training {
             writer = writer.with_metadata(key::TRAINING, training);
         }
-        if let Some(point) = &self.inference {
-            writer = writer.with_metadata(key::INFERENCE, &serde_json::to_string(point).expect("serializes"));
+        if let Some(point) = &inference {
+            writer = writer.with_metadata(key::INFERENCE, point);
         }
         let bytes = writer.into_bytes().map_err(write)?;
         common::write::write_atomic(path, &bytes)
@@ -305,7 +331,7 @@ impl Checkpoint {
         let metadata = reader.metadata().clone();
         let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
         let format = get(key::FORMAT)?;
-        if format != FORMAT && format != FORMAT_UNCHECKED {
+        if ![FORMAT, FORMAT_WEIGHTS_CHECKED, FORMAT_UNCHECKED].contains(&format.as_str()) {
             return Err(FormatProblem::UnsupportedFormat(format));
         }
         let stage = get(key::STAGE)?;
@@ -322,8 +348,21 @@ impl Checkpoint {
                 Some(point)
             }
         };
-        let stored = (format == FORMAT).then(|| get(key::CHECKSUM)).transpose()?;
+        let stored = (format != FORMAT_UNCHECKED).then(|| get(key::CHECKSUM)).transpose()?;
         let (model, optimizer) = split(reader.into_tensors()?, stored.as_deref())?;
+        if format == FORMAT {
+            let stored = get(key::STATE)?;
+            let computed = state_checksum(State {
+                stage: stage.name(),
+                model: &get(key::MODEL)?,
+                training: metadata.get(key::TRAINING).map(String::as_str),
+                inference: metadata.get(key::INFERENCE).map(String::as_str),
+                optimizer: optimizer.as_deref(),
+            });
+            if computed != stored {
+                return Err(FormatProblem::StateChecksum { stored, computed });
+            }
+        }
         Ok(Self {
             stage,
             model_config,
@@ -423,23 +462,68 @@ fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, burn_pack::Error> {
     pack(entries)
 }
 
-/// FNV-1a (64 bits) over each tensor's name, dtype, shape and bytes, in order: what a flipped
-/// bit anywhere in the weights changes.
-fn checksum<'a>(tensors: impl Iterator<Item = (&'a str, &'a TensorData)>) -> String {
-    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-    const PRIME: u64 = 0x0000_0100_0000_01b3;
-    let mut hash = OFFSET;
-    let mut feed = |bytes: &[u8]| {
-        for &byte in bytes {
-            hash = (hash ^ u64::from(byte)).wrapping_mul(PRIME);
-        }
-    };
-    for (name, data) in tensors {
-        feed(name.as_bytes());
-        feed(format!("{:?}{:?}", data.dtype(), data.shape()).as_bytes());
-        feed(data.as_bytes());
+/// FNV-1a, 64 bits: what a flipped bit anywhere in what it is fed changes.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
     }
-    format!("{hash:016x}")
+
+    fn feed(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            self.0 = (self.0 ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    fn finish(&self) -> String {
+        format!("{:016x}", self.0)
+    }
+}
+
+/// [`Fnv`] over each tensor's name, dtype, shape and bytes, in order.
+fn checksum<'a>(tensors: impl Iterator<Item = (&'a str, &'a TensorData)>) -> String {
+    let mut hash = Fnv::new();
+    for (name, data) in tensors {
+        hash.feed(name.as_bytes());
+        hash.feed(format!("{:?}{:?}", data.dtype(), data.shape()).as_bytes());
+        hash.feed(data.as_bytes());
+    }
+    hash.finish()
+}
+
+/// What a checkpoint holds beside its weights, as stored.
+struct State<'a> {
+    stage: &'a str,
+    model: &'a str,
+    training: Option<&'a str>,
+    inference: Option<&'a str>,
+    optimizer: Option<&'a [u8]>,
+}
+
+/// [`Fnv`] over a checkpoint's [`State`], each part tagged and its length given, so that a part
+/// missing or moved to another changes it too: with the weights' checksum, every byte that
+/// `--resume` reads is checked.
+fn state_checksum(state: State) -> String {
+    let mut hash = Fnv::new();
+    let parts = [
+        ("stage", Some(state.stage.as_bytes())),
+        ("model", Some(state.model.as_bytes())),
+        ("training", state.training.map(str::as_bytes)),
+        ("inference", state.inference.map(str::as_bytes)),
+        ("optimizer", state.optimizer),
+    ];
+    for (tag, part) in parts {
+        hash.feed(tag.as_bytes());
+        match part {
+            Some(bytes) => {
+                hash.feed(&(bytes.len() as u64).to_le_bytes());
+                hash.feed(bytes);
+            }
+            None => hash.feed(b"none"),
+        }
+    }
+    hash.finish()
 }
 
 /// Whether every value of a float tensor is finite (other tensors are). Half-precision values

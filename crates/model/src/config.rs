@@ -1,8 +1,7 @@
-//! The size of both networks, with the paper's preset and a CPU-sized one.
+//! The size of both networks, with the paper's preset and a CPU-sized one, and how their
+//! inputs are cut ([`InputSpec`]): what every checkpoint stores.
 
 use serde::{Deserialize, Serialize};
-
-use crate::input::InputSpec;
 
 /// Named starting points for [`ModelConfig`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -108,21 +107,23 @@ impl ModelConfig {
 
     /// Checks the sizes fit together; the message names the offending field.
     pub fn validate(&self) -> Result<(), InvalidSetting> {
-        let positive = [
-            ("input_size", self.input_size),
-            ("patch_size", self.patch_size),
-            ("embed_dim", self.embed_dim),
-            ("depth", self.depth),
-            ("heads", self.heads),
-            ("mlp_ratio", self.mlp_ratio),
-            ("paths", self.paths),
-            ("refine_paths", self.refine_paths),
-            ("query_dim", self.query_dim),
-            ("query_heads", self.query_heads),
-            ("fusion_channels", self.fusion_channels),
+        // Each size from 1 to a bound far above any network that trains on this hardware, so a
+        // typo (`paths = 1000000`) is refused by name instead of filling memory.
+        let sizes = [
+            ("input_size", self.input_size, MAX_INPUT_SIZE),
+            ("patch_size", self.patch_size, MAX_INPUT_SIZE),
+            ("embed_dim", self.embed_dim, MAX_WIDTH),
+            ("depth", self.depth, MAX_DEPTH),
+            ("heads", self.heads, MAX_DEPTH),
+            ("mlp_ratio", self.mlp_ratio, MAX_DEPTH),
+            ("paths", self.paths, MAX_MODEL_PATHS),
+            ("refine_paths", self.refine_paths, MAX_MODEL_PATHS),
+            ("query_dim", self.query_dim, MAX_WIDTH),
+            ("query_heads", self.query_heads, MAX_DEPTH),
+            ("fusion_channels", self.fusion_channels, MAX_WIDTH),
         ];
-        if let Some((name, _)) = positive.iter().find(|(_, value)| *value == 0) {
-            return Err(InvalidSetting(format!("model.{name} must be positive")));
+        if let Some((name, _, max)) = sizes.iter().find(|(_, value, max)| !(1..=*max).contains(value)) {
+            return Err(InvalidSetting(format!("model.{name} must be from 1 to {max}")));
         }
         self.input.validate()?;
         if self.input_size % self.patch_size != 0 {
@@ -158,6 +159,44 @@ impl ModelConfig {
     }
 }
 
+/// How region crops are cut, stored with the architecture in every checkpoint.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InputSpec {
+    /// Pixels added around the region's bounding box (clamped to the image), so paths along the
+    /// region's edge have room to anti-alias.
+    pub padding: u32,
+    /// Value of every channel outside the region's mask, in the crop and in E_r's canvas (the
+    /// reference uses −1 for colours in [0, 1]: distinct from any colour).
+    pub fill: f32,
+}
+
+impl Default for InputSpec {
+    /// What every model before this setting existed was trained with.
+    fn default() -> Self {
+        Self { padding: 2, fill: -1.0 }
+    }
+}
+
+impl InputSpec {
+    /// Checks the values; the message names the field.
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        if !self.fill.is_finite() {
+            return Err(InvalidSetting("model.input.fill must be a finite number".into()));
+        }
+        Ok(())
+    }
+}
+
+/// The largest `model.input_size` (and `patch_size`): a crop side in pixels.
+const MAX_INPUT_SIZE: usize = 1024;
+/// The largest `model.embed_dim`, `query_dim` and `fusion_channels`.
+const MAX_WIDTH: usize = 4096;
+/// The largest `model.depth`, `heads`, `query_heads` and `mlp_ratio`.
+const MAX_DEPTH: usize = 64;
+/// The largest `model.paths` and `refine_paths`: paths a network draws in one crop.
+const MAX_MODEL_PATHS: usize = 1024;
+
 /// A setting out of its range, in a config file or a checkpoint; the message names the field.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
@@ -175,6 +214,10 @@ mod tests {
         let bad = ModelConfig { input_size: 60, ..ModelConfig::preset(Preset::Cpu) };
         assert!(bad.validate().unwrap_err().0.contains("model.input_size"));
         let bad = ModelConfig { query_heads: 0, ..ModelConfig::preset(Preset::Cpu) };
-        assert_eq!(bad.validate().unwrap_err().0, "model.query_heads must be positive");
+        assert_eq!(bad.validate().unwrap_err().0, "model.query_heads must be from 1 to 64");
+        let bad = ModelConfig { paths: 1_000_000, ..ModelConfig::preset(Preset::Cpu) };
+        assert_eq!(bad.validate().unwrap_err().0, "model.paths must be from 1 to 1024");
+        let bad = ModelConfig { input_size: 65536, patch_size: 16, ..ModelConfig::preset(Preset::Cpu) };
+        assert_eq!(bad.validate().unwrap_err().0, "model.input_size must be from 1 to 1024");
     }
 }

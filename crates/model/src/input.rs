@@ -9,43 +9,13 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
 use raster::Path;
-use serde::{Deserialize, Serialize};
 use superpixel::{CropOptions, RegionCrop, Segmentation, resample_area};
 
-use crate::config::{InvalidSetting, ModelConfig};
+use crate::config::{InputSpec, ModelConfig};
 
 /// The smallest region (pixels) a model is trained or validated on: a 4 × 4 patch, the least
 /// that resized to the model's input still holds a shape rather than a few blurred cells.
 pub const MIN_REGION_PIXELS: usize = 16;
-
-/// How region crops are cut, stored with the architecture in every checkpoint.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct InputSpec {
-    /// Pixels added around the region's bounding box (clamped to the image), so paths along the
-    /// region's edge have room to anti-alias.
-    pub padding: u32,
-    /// Value of every channel outside the region's mask, in the crop and in E_r's canvas (the
-    /// reference uses −1 for colours in [0, 1]: distinct from any colour).
-    pub fill: f32,
-}
-
-impl Default for InputSpec {
-    /// What every model before this setting existed was trained with.
-    fn default() -> Self {
-        Self { padding: 2, fill: -1.0 }
-    }
-}
-
-impl InputSpec {
-    /// Checks the values; the message names the field.
-    pub fn validate(&self) -> Result<(), InvalidSetting> {
-        if !self.fill.is_finite() {
-            return Err(InvalidSetting("model.input.fill must be a finite number".into()));
-        }
-        Ok(())
-    }
-}
 
 impl ModelConfig {
     /// How crops for this model are cut (size, padding, fill).

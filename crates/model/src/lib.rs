@@ -22,9 +22,9 @@ pub use checkpoint::{
     Checkpoint, CheckpointError, FormatProblem, MismatchProblem, Stage, load_coarse, load_refine,
 };
 pub use coarse::CoarseModel;
-pub use config::{InvalidSetting, ModelConfig, Preset, RefineAnchor};
+pub use config::{InputSpec, InvalidSetting, ModelConfig, Preset, RefineAnchor};
 pub use decoder::PathDecoder;
-pub use input::{CropBatch, InputSpec, MIN_REGION_PIXELS, canvas_cells, crop_to_image};
+pub use input::{CropBatch, MIN_REGION_PIXELS, canvas_cells, crop_to_image};
 pub use operating::OperatingPoint;
 pub use placement::PathOptimizer;
 pub use prior::{ANCHOR_SIDE, error_squares};

@@ -190,6 +190,29 @@ fn damaged_or_diverged_weights_are_refused_by_name() {
     let err = load_coarse(&damaged, &device).err().expect("a damaged file is refused");
     assert!(matches!(err, CheckpointError::Format { problem: FormatProblem::Checksum { .. }, .. }), "{err}");
     assert!(err.to_string().contains("damaged.ckpt") && err.to_string().contains("checksum"), "{err}");
+    // A flipped bit in the optimizer state, the end of a training checkpoint: refused, so a
+    // resumed run never continues from state other than what was saved.
+    let training = Checkpoint {
+        optimizer: Some(burn::tensor::Bytes::from_elems((0..4096u32).map(|i| i as u8).collect())),
+        training: Some("{\"step\":3}".into()),
+        ..Checkpoint::load(&path).unwrap()
+    };
+    let resumable = dir.join("resumable.ckpt");
+    training.save(&resumable).unwrap();
+    assert_eq!(
+        Checkpoint::load(&resumable).unwrap().optimizer.unwrap().to_vec(),
+        training.optimizer.unwrap().to_vec()
+    );
+    let mut bytes = std::fs::read(&resumable).unwrap();
+    let at = bytes.len() - 100;
+    bytes[at] ^= 0x01;
+    std::fs::write(&damaged, &bytes).unwrap();
+    let err = Checkpoint::load(&damaged).err().expect("a damaged optimizer state is refused");
+    assert!(
+        matches!(err, CheckpointError::Format { problem: FormatProblem::StateChecksum { .. }, .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("damaged.ckpt") && err.to_string().contains("damaged"), "{err}");
     // A model whose weights went NaN, saved with a valid checksum: refused all the same.
     let mut model = CoarseModel::new(&config, &device);
     model = model.map(&mut NanEverything);
