@@ -19,6 +19,8 @@
 //! training and tests.
 
 pub mod budget;
+#[cfg(feature = "cli")]
+pub mod cli;
 mod coarse;
 mod fallback;
 mod finetune;

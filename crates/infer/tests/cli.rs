@@ -182,6 +182,17 @@ fn commands_that_cannot_run_as_asked_are_refused_before_any_work() {
             vec![p("photo.png"), "-o".into(), p("a.svg"), "--preview".into(), p("no/such/p.png")],
             "does not exist",
         ),
+        (vec!["-".into(), "-".into(), "-o".into(), p("out/")], "only once"),
+        (vec![p("photo.png"), p("c1/x.png"), "-o".into(), "-".into()], "stdout"),
+    ];
+    for (args, message) in cases {
+        let result = infer_within(&fixture, &args, 60);
+        let stderr = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(message), "{args:?}: {stderr:?} does not say {message:?}");
+    }
+    // A job the library refuses is a usage error (status 2, as clap's own), named by its flag.
+    let usage: Vec<(Vec<String>, &str)> = vec![
         (
             vec![
                 p("photo.png"),
@@ -192,17 +203,21 @@ fn commands_that_cannot_run_as_asked_are_refused_before_any_work() {
                 "--regions".into(),
                 "40".into(),
             ],
-            "below --paths",
+            "--regions: 40 regions do not fit a budget of 40 paths",
         ),
-        (paper(&["--regions", "5"]), "--operating-point paper needs a number of --paths"),
-        (paper(&["--paths", "auto"]), "--operating-point paper needs a number of --paths"),
-        (vec!["-".into(), "-".into(), "-o".into(), p("out/")], "only once"),
-        (vec![p("photo.png"), p("c1/x.png"), "-o".into(), "-".into()], "stdout"),
+        (
+            paper(&["--regions", "5"]),
+            "--operating-point: the paper's operating point takes a number of paths",
+        ),
+        (
+            paper(&["--paths", "auto"]),
+            "--operating-point: the paper's operating point takes a number of paths",
+        ),
     ];
-    for (args, message) in cases {
+    for (args, message) in usage {
         let result = infer_within(&fixture, &args, 60);
         let stderr = text(&result.stderr);
-        assert_eq!(result.status.code(), Some(1), "{args:?}: {stderr}");
+        assert_eq!(result.status.code(), Some(2), "{args:?}: {stderr}");
         assert!(stderr.contains(message), "{args:?}: {stderr:?} does not say {message:?}");
     }
     assert_eq!(std::fs::read(&photo).unwrap(), original, "the input is untouched");
@@ -256,6 +271,18 @@ fn devices_stdin_and_stdout_work_as_files() {
     let svg = text(&result.stdout);
     assert!(svg.starts_with("<svg") && svg.matches("<path").count() == 10, "{svg}");
     assert!(result.stderr.is_empty(), "--quiet: {}", text(&result.stderr));
+    // stdout closed (`>&-`): refused, not "written" into nothing; `>/dev/null` still writes.
+    for (redirect, code) in [(">&-", 1), (">/dev/null", 0)] {
+        let result = Command::new("sh")
+            .arg("-c")
+            .arg(format!("exec \"$0\" \"$1\" -o - --paths 10 --quiet {redirect}"))
+            .args([INFER, photo.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let stderr = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(code), "{redirect}: {stderr}");
+        assert_eq!(stderr.contains("stdout is closed"), code == 1, "{redirect}: {stderr}");
+    }
     let result = infer_within(
         &fixture,
         &[photo.to_str().unwrap().into(), "-o".into(), fixture.path("one.svg").to_str().unwrap().into()],
@@ -350,13 +377,33 @@ fn auto_is_a_budget_and_refuses_a_region_count() {
         "--regions",
         "5",
     ]);
-    assert_eq!(refused.status.code(), Some(1));
+    assert_eq!(refused.status.code(), Some(2));
     assert!(
-        text(&refused.stderr).contains("--regions needs a number of --paths"),
+        text(&refused.stderr).contains("--regions: a number of regions needs a number of paths"),
         "{}",
         text(&refused.stderr)
     );
     let bogus = fixture.infer(&[photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "many"]);
     assert_eq!(bogus.status.code(), Some(2));
     assert!(text(&bogus.stderr).contains("not a path budget"), "{}", text(&bogus.stderr));
+}
+
+/// docs/options.md is what `infer --help` prints, so the flags are documented once, by the
+/// program. After changing a flag, `SUPERSVG_BLESS=1 cargo test -p infer --test cli options_page`
+/// writes the page anew.
+#[test]
+fn the_options_page_is_the_programs_help() {
+    let help = Command::new(INFER).arg("--help").output().unwrap();
+    assert!(help.status.success(), "{}", text(&help.stderr));
+    let page = format!(
+        "# `infer` options\n\nWhat `infer --help` prints (a test checks that this page says the same; \
+         [usage.md](usage.md) says how the flags work together).\n\n```text\n{}```\n",
+        text(&help.stdout)
+    );
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/options.md");
+    if std::env::var_os("SUPERSVG_BLESS").is_some() {
+        std::fs::write(&path, &page).unwrap();
+    }
+    let written = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(written == page, "docs/options.md is not `infer --help`; rerun this test with SUPERSVG_BLESS=1");
 }

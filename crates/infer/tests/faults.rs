@@ -102,18 +102,20 @@ fn a_stopped_fine_tune_writes_its_best_drawing() {
     assert!(!svg.exists());
 }
 
-/// Peak resident memory of `child` in kB, sampled until it exits (VmHWM only grows).
-fn peak_kb(mut child: Child) -> (u64, std::process::ExitStatus) {
+/// Peak resident memory of `child` in kB, sampled until it exits (VmHWM only grows), and how
+/// many samples were read: a peak from no sample is no measurement.
+fn peak_kb(mut child: Child) -> (u64, usize, std::process::ExitStatus) {
     let mut peak = 0;
+    let mut samples = 0;
     loop {
-        if let Ok(status) = std::fs::read_to_string(format!("/proc/{}/status", child.id())) {
-            let hwm = status.lines().find(|l| l.starts_with("VmHWM:"));
-            if let Some(kb) = hwm.and_then(|l| l.split_whitespace().nth(1)).and_then(|v| v.parse().ok()) {
-                peak = peak.max(kb);
-            }
+        let status = std::fs::read_to_string(format!("/proc/{}/status", child.id())).unwrap_or_default();
+        let hwm = status.lines().find(|l| l.starts_with("VmHWM:"));
+        if let Some(kb) = hwm.and_then(|l| l.split_whitespace().nth(1)).and_then(|v| v.parse().ok()) {
+            peak = peak.max(kb);
+            samples += 1;
         }
         if let Some(status) = child.try_wait().unwrap() {
-            return (peak, status);
+            return (peak, samples, status);
         }
         std::thread::sleep(Duration::from_millis(5));
     }
@@ -143,10 +145,40 @@ fn memory_follows_the_working_size_not_the_file() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let (peak, status) = peak_kb(child);
+    let (peak, samples, status) = peak_kb(child);
     assert!(status.success());
+    assert!(samples > 0 && peak > 0, "no memory sample was read: {samples} samples, peak {peak} kB");
     assert!(std::fs::read_to_string(&svg).unwrap().contains("viewBox=\"0 0 8192 8192\""));
     assert!(peak <= 300 * 1024, "peak RSS {} MB", peak / 1024);
+}
+
+/// A 1 MB PNG whose ICC profile inflates to 600 MB is read in the memory of its pixels: the
+/// profile is inflated only within a small limit, then dropped.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_png_profile_bomb_stays_small() {
+    let fixture = Fixture::new("iccp");
+    let bomb = fixture.path("bomb.png");
+    let mut info = png::Info::with_size(64, 64);
+    info.color_type = png::ColorType::Rgb;
+    info.icc_profile = Some(vec![0u8; 600 << 20].into());
+    let file = std::io::BufWriter::new(std::fs::File::create(&bomb).unwrap());
+    let mut writer = png::Encoder::with_info(file, info).unwrap().write_header().unwrap();
+    writer.write_image_data(&[90; 64 * 64 * 3]).unwrap();
+    writer.finish().unwrap();
+    assert!(std::fs::metadata(&bomb).unwrap().len() < 1 << 20);
+    let svg = fixture.path("bomb.svg");
+    let child = Command::new(INFER)
+        .args([bomb.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--paths", "4", "--quiet"])
+        .args(["--coarse", fixture.path("coarse.ckpt").to_str().unwrap(), "--no-refine"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (peak, samples, status) = peak_kb(child);
+    assert!(status.success());
+    assert!(samples > 0 && peak > 0, "no memory sample was read: {samples} samples, peak {peak} kB");
+    assert!(svg.exists());
+    assert!(peak <= 200 * 1024, "peak RSS {} MB", peak / 1024);
 }
 
 /// Inputs that cannot seek (a pipe, `/dev/stdin`), a folder or a device where a checkpoint
@@ -228,7 +260,9 @@ fn misleading_inputs_get_messages_that_say_what_is_wrong() {
     assert_eq!(result.status.code(), Some(2), "+f+f+f is no colour: {}", text(&result.stderr));
     let result =
         fixture.infer(&[photo.to_str().unwrap(), "-o", &p("a.svg"), "--finetune-steps", "1000000000"]);
-    assert_eq!(result.status.code(), Some(2), "{}", text(&result.stderr));
+    let stderr = text(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--finetune-steps: 1000000000 steps: at most 100000"), "{stderr}");
 }
 
 /// `infer - -o - | head`: the reader leaving ends the program quietly.

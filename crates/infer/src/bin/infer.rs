@@ -3,33 +3,34 @@
 //! `infer photo.jpg -o photo.svg [--paths 500] [--preview photo.png] [--metrics photo.json]`
 //! `infer a.png b.jpg … -o out/` (a folder for several inputs), `infer - -o - < in.png > out.svg`
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::ops::ControlFlow;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::{Context, anyhow, bail};
-use clap::Parser;
-use common::decode::{DecodeError, LoadOptions, decode, open};
+use anyhow::Context;
+use clap::error::ErrorKind;
+use clap::{CommandFactory, Parser};
+use common::Loaded;
+use common::decode::{DecodeError, LoadOptions, decode, open, read_stream};
 use common::progress::Bar;
-use common::write::{folder_of, probe_folder, write_atomic, write_png};
-use common::{Loaded, WORKING_SIZES};
+use common::write::{write_atomic, write_png};
 use image::{Rgb32FImage, RgbImage};
+use infer::cli::{Outputs, Planned, colour, plan, stdout_closed, working_size};
 use infer::{
-    BUILT_IN_COARSE, BUILT_IN_REFINE, FinetuneOptions, Job, Limit, MAX_PATHS, ModelSource, Models,
+    BUILT_IN_COARSE, BUILT_IN_REFINE, FinetuneOptions, InvalidJob, Job, Limit, ModelSource, Models,
     PathBudget, Progress, Refiner, Report, Split, bundled, run_with_progress,
 };
-use raster::{Backend, MAX_DECIMALS, SvgOptions};
+use raster::{Backend, SvgOptions};
 use serde::Serialize;
 
 /// Vectorize images into SVG with SuperSVG.
 ///
 /// Outputs: a path ending in `/` (or an existing folder) is a folder that gets one file per
-/// input, named after it; anything else is a file, which needs exactly one input. Several
-/// inputs need folders. `-` reads the input from stdin or writes the SVG to stdout. Every
-/// output is checked before any work: extensions, name collisions, an output that is an input,
-/// folders that cannot be written.
+/// input, named after it; anything else is a file, which needs exactly one input. `-` reads the
+/// input from stdin or writes the SVG to stdout. Every output is checked before any work:
+/// extensions, name collisions, an output that is an input, folders that cannot be written.
 #[derive(Parser, Debug)]
 #[command(name = "infer", version)]
 struct Args {
@@ -39,18 +40,16 @@ struct Args {
     /// The SVG: a `.svg` file for one input, a folder (`out/`) for any number, or `-` (stdout).
     #[arg(short, long)]
     output: PathBuf,
-    /// The most paths in the result (2 to 20000; fewer only when no further path lowers the
-    /// error), or `auto`: per image, double from 8 paths until the drawing reaches 30 dB PSNR,
-    /// and keep the fewest past which more paths gain less than 0.25 dB a doubling, at most 2000
-    /// (flat art gets few paths, photos many).
+    /// The most paths (2 to 20000; fewer only when no further path lowers the error), or
+    /// `auto`: per image, as many as it needs (flat art gets few paths, photos many, at most
+    /// 2000).
     #[arg(long, default_value = "500", value_parser = str::parse::<PathBudget>)]
     paths: PathBudget,
-    /// Coarse-model checkpoint (default: the bundled one, built into this program, or
-    /// coarse.ckpt in $SUPERSVG_MODELS when that is set).
+    /// Coarse-model checkpoint (default: the bundled one, or coarse.ckpt in $SUPERSVG_MODELS).
     #[arg(long)]
     coarse: Option<PathBuf>,
-    /// Refinement-model checkpoint (default: the bundled one, built into this program, or
-    /// refine.ckpt in $SUPERSVG_MODELS when that is set).
+    /// Refinement-model checkpoint (default: the bundled one, or refine.ckpt in
+    /// $SUPERSVG_MODELS).
     #[arg(long)]
     refine: Option<PathBuf>,
     /// Coarse paths only, no refinement.
@@ -58,31 +57,25 @@ struct Args {
     no_refine: bool,
     /// Who proposes the refinement stage's paths: `network` (E_r), or `optimizer[:STEPS]`, the
     /// exact optimizer in E_r's place (300 Adam steps a region's crop by default; E_r is not
-    /// loaded). It takes 13-23 ms a region at 300 steps on 2 cores, where E_r's forward takes
-    /// 3: a yardstick for people who train an E_r (what gradient descent finds in its role).
+    /// loaded): a yardstick for people who train an E_r.
     #[arg(long, default_value = "network", value_parser = str::parse::<Refiner>,
           conflicts_with_all = ["refine", "no_refine"])]
     refiner: Refiner,
     /// Compute backend: flex, ndarray or wgpu.
     #[arg(long, default_value = "flex")]
     backend: Backend,
-    /// Long side of the working resolution in pixels, 16 to 8192 (the SVG keeps the input's size).
-    /// Time and memory grow with its pixels: at 4096 a photo takes about 9 s and 0.9 GB, at
-    /// 8192 a flat picture about 45 s and 3.5 GB (2 cores).
+    /// Long side of the working resolution in pixels, 16 to 8192 (the SVG keeps the input's
+    /// size); time and memory grow with its pixels.
     #[arg(long, default_value_t = 512, value_parser = working_size)]
     size: u32,
-    /// Number of superpixels, below `--paths`. By default the regions fill the budget (less
-    /// E_r's share of the operating point stored with the coarse model) and each E_c path kept
-    /// takes the place of a region, merged away where that costs least, only where the path
-    /// draws better than the region did; a given count is kept, and E_c draws only with what it
-    /// leaves. At most one per 16 pixels of the working image: more is lowered, with a warning.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..MAX_PATHS as u64))]
-    regions: Option<u64>,
+    /// Number of superpixels, below `--paths`. By default the regions fill the budget and a
+    /// network's path takes a region's place only where it draws better; a given count is
+    /// kept. At most one per 16 pixels of the working image: more is lowered, with a warning.
+    #[arg(long)]
+    regions: Option<usize>,
     /// How the budget is split between regions, E_c and E_r: `stored` (the operating point
-    /// stored with the coarse model), `COARSE,REFINE` (shares of the budget E_c may buy and E_r
-    /// keeps, e.g. `0.2,0.1`), or `paper`: the paper's inference for models trained with the
-    /// paper preset (budget/64 SLIC regions, every visible E_c path, one pass of E_r over a
-    /// second SLIC; no fallback paths, no acceptance test; a background path under all).
+    /// stored with the coarse model), `COARSE,REFINE` (shares, e.g. `0.2,0.1`), or `paper`: the
+    /// paper's inference, for models trained with the paper preset.
     #[arg(long, default_value = "stored", value_parser = str::parse::<Split>)]
     operating_point: Split,
     /// Write a PNG rendering of the result (`.png` file, or a folder).
@@ -94,26 +87,23 @@ struct Args {
     /// Write MSE, PSNR, SSIM, path count and seconds per stage as JSON (`.json` file, or a folder).
     #[arg(long)]
     metrics: Option<PathBuf>,
-    /// SuperSVG-F: fine-tune every path against the image, this many steps (0 to 100 000; each
-    /// moves every path).
-    #[arg(long, conflicts_with = "finetune_secs", value_parser = clap::value_parser!(u64).range(0..=MAX_FINETUNE_STEPS))]
-    finetune_steps: Option<u64>,
+    /// SuperSVG-F: fine-tune every path against the image, this many steps (0 to 100000).
+    #[arg(long, conflicts_with = "finetune_secs")]
+    finetune_steps: Option<usize>,
     /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
-    #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
     /// Decimals of the SVG's coordinates (0 to 6; 2 keeps 1/100 pixel, fewer make smaller files).
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=MAX_DECIMALS as i64))]
-    decimals: u8,
+    #[arg(long, default_value_t = 2)]
+    decimals: usize,
     /// Draw regions along shared boundaries fitted with curves that stray at most this far
-    /// (pixels of the working image, 0 to 8) from the traced ones: curves an editor can reshape,
-    /// each boundary the same curve on both sides. Larger gives fewer curves and bytes. Default:
-    /// each region's traced polygon, which draws data/eval better at equal paths and bytes (at 1:
-    /// photos 0.24 dB lower at 500 paths for the same bytes, emoji 1.8 dB lower).
-    #[arg(long, value_parser = tolerance)]
+    /// (pixels of the working image, 0 to 8) from the traced ones: curves an editor can reshape.
+    /// Larger gives fewer curves and bytes. Default: each region's traced polygon.
+    #[arg(long, allow_hyphen_values = true)]
     tolerance: Option<f32>,
     /// The colour transparent pixels are composited over (`#rrggbb`); the SVG is opaque.
     #[arg(long, default_value = "#ffffff", value_parser = colour)]
-    background: Colour,
+    background: [f32; 3],
     /// Draw what a truncated JPEG holds instead of refusing it.
     #[arg(long)]
     allow_truncated: bool,
@@ -122,9 +112,42 @@ struct Args {
     quiet: bool,
 }
 
-/// The most `--finetune-steps`: at 512 px and 500 paths a step takes about 25 ms, so 100 000
-/// steps are most of an hour, what `--finetune-secs` allows.
-const MAX_FINETUNE_STEPS: u64 = 100_000;
+impl Args {
+    /// The job these flags ask for, checked by the library; its error names the flag.
+    fn job(&self) -> Result<Job, String> {
+        let limit = match (self.finetune_steps, self.finetune_secs) {
+            (Some(steps), _) => Some(Limit::Steps(steps)),
+            (None, Some(seconds)) => Some(Limit::Seconds(seconds)),
+            (None, None) => None,
+        };
+        let job = Job {
+            paths: self.paths,
+            regions: self.regions,
+            finetune: limit.map(|limit| FinetuneOptions { limit, ..FinetuneOptions::default() }),
+            svg: SvgOptions { decimals: self.decimals, ..SvgOptions::default() },
+            tolerance: self.tolerance,
+            operating_point: self.operating_point,
+            refiner: self.refiner,
+            ..Job::default()
+        };
+        job.validate().map_err(|err| format!("{}: {err}", self.flag(&err)))?;
+        Ok(job)
+    }
+
+    /// The flag that sets what `err` is about.
+    fn flag(&self, err: &InvalidJob) -> &'static str {
+        match err.field() {
+            "regions" => "--regions",
+            "operating_point" => "--operating-point",
+            "refiner" => "--refiner",
+            "tolerance" => "--tolerance",
+            "finetune" if self.finetune_steps.is_some() => "--finetune-steps",
+            "finetune" => "--finetune-secs",
+            "svg" => "--decimals",
+            _ => "--paths",
+        }
+    }
+}
 
 /// Set by the first Ctrl-C (or SIGTERM) during a job that fine-tunes: fine-tuning stops with the
 /// best drawing so far, which is written, and no further input is started.
@@ -146,67 +169,16 @@ fn catch_interrupts() {
     });
 }
 
-/// A bar for SuperSVG-F on stderr: time or steps, with the running PSNR.
-fn finetune_bar(limit: Limit, shown: bool) -> Bar {
-    match limit {
-        Limit::Seconds(seconds) => Bar::new("fine-tuning", (seconds * 1000.0) as u64, "ms", shown),
-        Limit::Steps(steps) => Bar::new("fine-tuning", steps as u64, "steps", shown),
-    }
-}
-
-/// A long side within [`WORKING_SIZES`].
-fn working_size(text: &str) -> Result<u32, String> {
-    match text.parse::<u32>() {
-        Ok(size) if WORKING_SIZES.contains(&size) => Ok(size),
-        _ => Err(format!(
-            "{text:?} is not a working size: a number of pixels from {} to {}",
-            WORKING_SIZES.start(),
-            WORKING_SIZES.end()
-        )),
-    }
-}
-
-/// An RGB colour in [0, 1].
-#[derive(Clone, Copy, Debug)]
-struct Colour([f32; 3]);
-
-/// `#rrggbb` (or `rrggbb`) as a colour: six hexadecimal digits, nothing else (`from_str_radix`
-/// alone would take `+f` for `0f`).
-fn colour(text: &str) -> Result<Colour, String> {
-    let hex = text.strip_prefix('#').unwrap_or(text);
-    let digits = hex.bytes().all(|b| b.is_ascii_hexdigit());
-    let channel =
-        |i: usize| hex.get(i..i + 2).filter(|_| digits).and_then(|h| u8::from_str_radix(h, 16).ok());
-    match (hex.len(), channel(0), channel(2), channel(4)) {
-        (6, Some(r), Some(g), Some(b)) => Ok(Colour([r, g, b].map(|c| c as f32 / 255.0))),
-        _ => Err(format!("{text:?} is not a colour: write it #rrggbb")),
-    }
-}
-
-/// `text` as a finite number within `range`, else an error saying it must be `what` within it.
-fn bounded(text: &str, range: std::ops::RangeInclusive<f64>, what: &str) -> Result<f64, String> {
-    let value: f64 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
-    if value.is_finite() && range.contains(&value) {
-        Ok(value)
-    } else {
-        Err(format!("{text} is not {what} within {} to {}", range.start(), range.end()))
-    }
-}
-
-/// A finite number of seconds within [0, 3600].
-fn seconds(text: &str) -> Result<f64, String> {
-    bounded(text, 0.0..=3600.0, "a number of seconds")
-}
-
-/// A finite tolerance within [0, 8] pixels.
-fn tolerance(text: &str) -> Result<f32, String> {
-    bounded(text, 0.0..=8.0, "a tolerance in pixels").map(|value| value as f32)
-}
-
 fn main() -> ExitCode {
     let args = Args::parse();
+    // A value out of range is a usage error, as clap reports one it finds itself (status 2).
+    let job = args.job().unwrap_or_else(|err| Args::command().error(ErrorKind::ValueValidation, err).exit());
+    if args.output.as_os_str() == "-" && stdout_closed() {
+        eprintln!("error: -o -: stdout is closed, so the SVG would go nowhere");
+        return ExitCode::FAILURE;
+    }
     catch_interrupts();
-    match run(&args) {
+    match run(&args, &job) {
         Ok(_) if STOP.load(Ordering::SeqCst) => ExitCode::from(130),
         Ok(0) => ExitCode::SUCCESS,
         Ok(failed) => {
@@ -220,249 +192,22 @@ fn main() -> ExitCode {
     }
 }
 
-/// Where one input comes from.
-#[derive(Clone, Debug)]
-enum Source {
-    File(PathBuf),
-    Stdin,
-}
-
-impl Source {
-    fn name(&self) -> String {
-        match self {
-            Source::File(path) => path.display().to_string(),
-            Source::Stdin => "<stdin>".into(),
-        }
-    }
-}
-
-/// Where the SVG of one input goes.
-#[derive(Clone, Debug, PartialEq)]
-enum Sink {
-    File(PathBuf),
-    Stdout,
-}
-
-/// One input and every output it gets, decided before any work.
-struct Planned {
-    source: Source,
-    svg: Sink,
-    preview: Option<PathBuf>,
-    compare: Option<PathBuf>,
-    metrics: Option<PathBuf>,
-}
-
-/// What an output argument names.
-enum Place {
-    Folder(PathBuf),
-    File(PathBuf),
-    Stdout,
-}
-
-fn place(path: &Path, stdout_allowed: bool) -> Place {
-    let text = path.to_string_lossy();
-    if stdout_allowed && text == "-" {
-        Place::Stdout
-    } else if text.ends_with('/') || path.is_dir() {
-        Place::Folder(path.to_path_buf())
-    } else {
-        Place::File(path.to_path_buf())
-    }
-}
-
-/// Every input with its outputs, and the folders and files to write, or the first reason the
-/// command cannot run as asked. Creates nothing ([`Plan::prepare`] does, once the models load).
-fn plan(args: &Args) -> anyhow::Result<Plan> {
-    let many = args.inputs.len() > 1;
-    let sources: Vec<Source> = args
-        .inputs
-        .iter()
-        .map(|path| if path.as_os_str() == "-" { Source::Stdin } else { Source::File(path.clone()) })
-        .collect();
-    if sources.iter().filter(|s| matches!(s, Source::Stdin)).count() > 1 {
-        bail!("stdin (-) can be read only once");
-    }
-    let mut folders = Vec::new();
-    // (flag, path, extension): each output argument resolved to a destination per input.
-    let mut resolve = |flag: &str,
-                       path: &Path,
-                       extension: &str,
-                       stdout: bool|
-     -> anyhow::Result<Vec<Option<PathBuf>>> {
-        match place(path, stdout) {
-            Place::Stdout if many => Err(anyhow!("{flag} -: several inputs cannot all go to stdout")),
-            Place::Stdout => Ok(vec![None]),
-            Place::File(file) if many => {
-                Err(anyhow!("{flag} {}: several inputs need a folder (end the path with /)", file.display()))
-            }
-            Place::File(file) => {
-                // A device or a pipe (`/dev/null`) has no extension to check.
-                let special = std::fs::metadata(&file).is_ok_and(|m| !m.is_file());
-                let ok = special || file.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension));
-                if !ok {
-                    return Err(anyhow!("{flag} {}: the file name must end in .{extension}", file.display()));
-                }
-                Ok(vec![Some(file)])
-            }
-            Place::Folder(folder) => {
-                if folder.exists() && !folder.is_dir() {
-                    return Err(anyhow!("{flag} {}: not a folder", folder.display()));
-                }
-                folders.push(folder.clone());
-                Ok(sources
-                    .iter()
-                    .map(|source| {
-                        let stem = match source {
-                            Source::File(path) => {
-                                path.file_stem().map(|s| s.to_os_string()).unwrap_or_default()
-                            }
-                            Source::Stdin => "stdin".into(),
-                        };
-                        Some(folder.join(Path::new(&stem).with_extension(extension)))
-                    })
-                    .collect())
-            }
-        }
-    };
-    let svg = resolve("-o", &args.output, "svg", true)?;
-    let optional = |files: Option<Vec<Option<PathBuf>>>| files.unwrap_or_else(|| vec![None; sources.len()]);
-    let preview =
-        optional(args.preview.as_deref().map(|p| resolve("--preview", p, "png", false)).transpose()?);
-    let compare =
-        optional(args.compare.as_deref().map(|p| resolve("--compare", p, "png", false)).transpose()?);
-    let metrics =
-        optional(args.metrics.as_deref().map(|p| resolve("--metrics", p, "json", false)).transpose()?);
-
-    let inputs: Vec<(PathBuf, String)> = sources
-        .iter()
-        .filter_map(|s| match s {
-            Source::File(path) => Some((absolute(path), s.name())),
-            Source::Stdin => None,
-        })
-        .collect();
-    // (absolute path, what would be written there), for every output file.
-    let mut taken: Vec<(PathBuf, String)> = Vec::new();
-    let mut files = Vec::new();
-    let mut jobs = Vec::new();
-    for (index, source) in sources.iter().enumerate() {
-        let job = Planned {
-            source: source.clone(),
-            svg: svg[index].clone().map_or(Sink::Stdout, Sink::File),
-            preview: preview[index].clone(),
-            compare: compare[index].clone(),
-            metrics: metrics[index].clone(),
-        };
-        let outputs = [
-            ("the SVG", job.svg.file()),
-            ("the --preview", job.preview.as_ref()),
-            ("the --compare", job.compare.as_ref()),
-            ("the --metrics", job.metrics.as_ref()),
-        ];
-        for (what, file) in outputs.into_iter().filter_map(|(what, file)| file.map(|f| (what, f))) {
-            let absolute = absolute(file);
-            let this = format!("{what} of {}", source.name());
-            if let Some((_, input)) = inputs.iter().find(|(path, _)| *path == absolute) {
-                return Err(anyhow!("{}: is the input {input}; refusing to overwrite it", file.display()));
-            }
-            if let Some((_, other)) = taken.iter().find(|(path, _)| *path == absolute) {
-                return Err(anyhow!(
-                    "{}: both {other} and {this} would be written there; give them different names",
-                    file.display()
-                ));
-            }
-            if std::fs::symlink_metadata(file).is_ok_and(|m| m.file_type().is_symlink()) && !file.exists() {
-                return Err(anyhow!("{}: a link to nothing; remove it or write elsewhere", file.display()));
-            }
-            taken.push((absolute, this));
-            files.push(file.clone());
-        }
-        jobs.push(job);
-    }
-    Ok(Plan { jobs, folders, files })
-}
-
-/// What [`plan`] decided: the jobs, the output folders to create and the files to write.
-struct Plan {
-    jobs: Vec<Planned>,
-    folders: Vec<PathBuf>,
-    files: Vec<PathBuf>,
-}
-
-impl Plan {
-    /// Creates the output folders and checks that every output can be written there.
-    fn prepare(&self) -> anyhow::Result<()> {
-        for folder in &self.folders {
-            std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
-        }
-        self.files.iter().try_for_each(|file| writable(file))
-    }
-}
-
-impl Sink {
-    fn file(&self) -> Option<&PathBuf> {
-        match self {
-            Sink::File(path) => Some(path),
-            Sink::Stdout => None,
-        }
-    }
-}
-
-/// `path` made absolute, with its folder resolved through links where it exists.
-fn absolute(path: &Path) -> PathBuf {
-    if let Ok(resolved) = std::fs::canonicalize(path) {
-        return resolved;
-    }
-    let folder = folder_of(path);
-    let folder = std::fs::canonicalize(folder).unwrap_or_else(|_| folder.to_path_buf());
-    folder.join(path.file_name().unwrap_or_default())
-}
-
-/// Whether `file` can be written: it is not a folder, and its folder exists and takes a new
-/// file (what the atomic write needs), unless it is a device or a pipe.
-fn writable(file: &Path) -> anyhow::Result<()> {
-    let fail = |message: String| format!("{}: {message}", file.display());
-    if file.is_dir() {
-        return Err(anyhow!(fail("is a folder".into())));
-    }
-    if std::fs::metadata(file).is_ok_and(|m| !m.is_file()) {
-        return Ok(()); // a device or a pipe: written in place, its errors reported then
-    }
-    let folder = folder_of(file);
-    if !folder.is_dir() {
-        return Err(anyhow!(fail(format!("the folder {} does not exist", folder.display()))));
-    }
-    probe_folder(folder).map_err(|err| anyhow!(fail(format!("cannot write in {}: {err}", folder.display()))))
-}
-
 /// Loads the models, then vectorizes every input; returns how many inputs failed.
-fn run(args: &Args) -> anyhow::Result<usize> {
-    if let (PathBudget::Count(paths), Some(regions)) = (args.paths, args.regions)
-        && regions as usize >= paths
-    {
-        bail!(
-            "--regions {regions} must be below --paths {paths} (each region takes a path, and so does the background)"
-        );
-    }
-    if let (PathBudget::Auto(_), Some(_)) = (args.paths, args.regions) {
-        bail!("--regions needs a number of --paths, not auto");
-    }
-    if args.operating_point == Split::Paper
-        && (args.regions.is_some() || matches!(args.paths, PathBudget::Auto(_)))
-    {
-        bail!("--operating-point paper needs a number of --paths and cuts its own regions (no --regions)");
-    }
-    if args.operating_point == Split::Paper && args.refiner != Refiner::Network {
-        bail!("--operating-point paper runs E_r as the paper does: it takes no --refiner");
-    }
-    let plan = plan(args)?;
+fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
+    let outputs = Outputs {
+        svg: &args.output,
+        preview: args.preview.as_deref(),
+        compare: args.compare.as_deref(),
+        metrics: args.metrics.as_deref(),
+    };
+    let plan = plan(&args.inputs, outputs)?;
     let device = args.backend.device()?;
     let coarse = match &args.coarse {
         Some(path) => ModelSource::File(path.clone()),
         None => bundled(&BUILT_IN_COARSE)?,
     };
-    let refine = match (&args.refine, args.no_refine) {
+    let refine = match (&args.refine, args.no_refine || args.refiner != Refiner::Network) {
         (_, true) => None,
-        (None, false) if args.refiner != Refiner::Network => None,
         (Some(path), false) => Some(ModelSource::File(path.clone())),
         (None, false) => Some(bundled(&BUILT_IN_REFINE)?),
     };
@@ -490,36 +235,17 @@ fn run(args: &Args) -> anyhow::Result<usize> {
              fills what the coarse stage leaves unused, so --refine and --no-refine change little"
         );
     }
-    let finetune = match (args.finetune_steps, args.finetune_secs) {
-        (Some(steps), _) => Some(Limit::Steps(steps as usize)),
-        (None, Some(seconds)) => Some(Limit::Seconds(seconds)),
-        (None, None) => None,
-    };
-    let job = Job {
-        paths: args.paths,
-        regions: args.regions.map(|r| r as usize),
-        finetune: finetune.map(|limit| FinetuneOptions { limit, ..FinetuneOptions::default() }),
-        svg: SvgOptions { decimals: args.decimals.into(), ..SvgOptions::default() },
-        tolerance: args.tolerance,
-        operating_point: args.operating_point,
-        refiner: args.refiner,
-        ..Job::default()
-    };
-
     let bar = Bar::new("", jobs.len() as u64, "images", jobs.len() > 1 && !args.quiet);
     let mut failed = 0;
-    for planned in &jobs {
-        if STOP.load(Ordering::SeqCst) {
-            break;
-        }
-        match process(planned, &models, &job, args, &device, &bar) {
+    for planned in jobs.iter().take_while(|_| !STOP.load(Ordering::SeqCst)) {
+        match process(planned, &models, job, args, &device, &bar) {
             Ok(line) if !args.quiet => bar.println(&line),
             Ok(_) => {}
             Err(message) => {
                 // A decoding error names its input and says what is wrong in its own words.
                 bar.println(&match message.downcast_ref::<DecodeError>() {
                     Some(decoding) => format!("error: {decoding}"),
-                    None => format!("error: {}: {message:#}", planned.source.name()),
+                    None => format!("error: {}: {message:#}", planned.name()),
                 });
                 failed += 1;
             }
@@ -551,23 +277,26 @@ fn process(
     let options = LoadOptions {
         long_side: args.size,
         allow_truncated: args.allow_truncated,
-        background: args.background.0,
+        background: args.background,
     };
-    let loaded: Loaded = match &planned.source {
-        Source::File(path) => open(path, &options)?,
-        Source::Stdin => {
-            let mut bytes = Vec::new();
-            std::io::stdin().read_to_end(&mut bytes).context("reading stdin")?;
+    let loaded: Loaded = match &planned.input {
+        Some(path) => open(path, &options)?,
+        None => {
+            let bytes = read_stream(std::io::stdin().lock())
+                .map_err(|problem| DecodeError { input: "<stdin>".into(), problem })?;
             decode(&bytes, "<stdin>", &options)?
         }
     };
-    let tuning = job.finetune.as_ref().map(|f| finetune_bar(f.limit, !args.quiet && !bar.is_shown()));
+    let shown = !args.quiet && !bar.is_shown();
+    let tuning = job.finetune.as_ref().map(|f| match f.limit {
+        Limit::Seconds(seconds) => Bar::new("fine-tuning", (seconds * 1000.0) as u64, "ms", shown),
+        Limit::Steps(steps) => Bar::new("fine-tuning", steps as u64, "steps", shown),
+    });
     let mut show = |progress: &Progress| {
         if let Some(tuning) = &tuning {
-            match progress.total_steps {
-                Some(_) => tuning.set_position(progress.steps as u64),
-                None => tuning.set_position((progress.seconds * 1000.0) as u64),
-            }
+            let position =
+                progress.total_steps.map_or((progress.seconds * 1000.0) as u64, |_| progress.steps as u64);
+            tuning.set_position(position);
             tuning.set_message(format!("{:.2} dB", progress.psnr));
         }
         if STOP.load(Ordering::SeqCst) { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
@@ -580,14 +309,14 @@ fn process(
         tuning.finish();
     }
     for warning in &outcome.warnings {
-        bar.println(&format!("warning: {}: {warning}", planned.source.name()));
+        bar.println(&format!("warning: {}: {warning}", planned.name()));
     }
     let written = match &planned.svg {
-        Sink::File(path) => {
+        Some(path) => {
             write_atomic(path, outcome.svg.as_bytes()).with_context(|| path.display().to_string())?;
             path.display().to_string()
         }
-        Sink::Stdout => {
+        None => {
             let mut out = std::io::stdout().lock();
             match out.write_all(outcome.svg.as_bytes()).and_then(|()| out.flush()) {
                 // The reader went away (`infer - -o - | head`): end quietly, as Unix tools do.
@@ -597,26 +326,22 @@ fn process(
             "stdout".to_string()
         }
     };
+    let canvas = outcome.scene.canvas_rgb8();
     if let Some(path) = &planned.preview {
-        write_png(path, &outcome.scene.canvas_rgb8()).with_context(|| path.display().to_string())?;
+        write_png(path, &canvas).with_context(|| path.display().to_string())?;
     }
     if let Some(path) = &planned.compare {
-        write_png(path, &side_by_side(&loaded.image, &outcome.scene.canvas_rgb8()))
-            .with_context(|| path.display().to_string())?;
+        write_png(path, &side_by_side(&loaded.image, &canvas)).with_context(|| path.display().to_string())?;
     }
     let report = &outcome.report;
     let mut quality = String::new();
     if let Some(path) = &planned.metrics {
-        let text = serde_json::to_string_pretty(&Metrics { input: planned.source.name(), report })?;
+        let text = serde_json::to_string_pretty(&Metrics { input: planned.name(), report })?;
         write_atomic(path, text.as_bytes()).with_context(|| path.display().to_string())?;
         quality = format!(", PSNR {:.2} dB", report.psnr);
     }
-    Ok(format!(
-        "{} -> {written}: {} paths{quality}, {:.2} s",
-        planned.source.name(),
-        report.paths,
-        report.seconds.total
-    ))
+    let seconds = report.seconds.total;
+    Ok(format!("{} -> {written}: {} paths{quality}, {seconds:.2} s", planned.name(), report.paths))
 }
 
 /// The input and the rendering next to each other.
