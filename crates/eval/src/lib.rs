@@ -1,9 +1,24 @@
-//! Evaluating SuperSVG against other vectorizers: the peers (vtracer and potrace as
-//! subprocesses, the pixel-exact superpixel mosaic), LPIPS, and rendering any SVG with resvg so
-//! every method is scored by the same renderer, and rate–distortion curves ([`rate`]). Kept out of the `infer` library users link.
+//! Evaluating SuperSVG against other vectorizers, for the `eval` and `tune` programs: every way
+//! of drawing an image behind one trait ([`Vectorizer`]: SuperSVG's variants, vtracer and
+//! potrace as programs, the pixel-exact superpixel mosaic), every SVG rendered by resvg so each
+//! is scored by the same renderer, LPIPS, and the report ([`report`], [`Results`]) with its
+//! rate–distortion section and contact sheet. Kept out of the `infer` library users link.
 
-pub mod cli;
-pub mod lpips;
-pub mod peers;
-pub mod rate;
-pub mod spill;
+mod cli;
+mod lpips;
+mod method;
+mod peers;
+mod rate;
+mod report;
+mod spill;
+
+pub use cli::{command_line, finish, load_models};
+pub use lpips::{LPIPS_ENV, Lpips, LpipsError};
+pub use method::{
+    Anatomy, Budget, DrawError, Drawing, Finetuned, Input, Method, Ours, Potrace, SPILL_DILATION, SlicMosaic,
+    Vectorizer, Vtracer,
+};
+pub use peers::{PeerError, VtracerSettings, available, render_chart, render_svg};
+pub use rate::{RatePoint, at, frontier};
+pub use report::{Header, Results, Row, SweepPoint, Table, rate_chart, rate_section, report, sweep_points};
+pub use spill::spill;

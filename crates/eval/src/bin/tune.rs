@@ -16,11 +16,12 @@ use anyhow::{Context, anyhow, bail};
 use clap::Parser;
 use common::decode::load;
 use common::folder::files_in;
+use common::outputs::check_output;
 use common::write::write_atomic;
-use eval::cli::{command_line, finish, load_models};
+use eval::{command_line, finish, load_models};
 use infer::{Job, PathBudget, Split, run};
 use infer::{Origin, StageCounts};
-use model::{Checkpoint, OperatingPoint};
+use model::{Checkpoint, OperatingPoint, Stage};
 use raster::Backend;
 
 /// Measure operating points of SuperSVG-B on a folder of images.
@@ -41,7 +42,8 @@ struct Args {
     /// The markdown table to write.
     #[arg(long)]
     out: PathBuf,
-    /// Store the best point in this coarse checkpoint (rewritten in place).
+    /// Store the best point in this coarse checkpoint (rewritten in place; checked before any
+    /// measuring: a missing, damaged or refinement checkpoint is refused first).
     #[arg(long)]
     write: Option<PathBuf>,
     /// Coarse-model checkpoint (default: the bundled one).
@@ -105,17 +107,37 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         let sizes = common::WORKING_SIZES;
         bail!("--size: {} is out of range ({} to {} pixels)", args.size, sizes.start(), sizes.end());
     }
+    let files = files_in(&args.dir)?;
+    // What is written at the end is checked now, before any measuring: the table is no image
+    // of the folder, and the checkpoint that takes the best point is a coarse one, whole.
+    check_output(&args.out, &files)?;
+    let target = match &args.write {
+        Some(path) => {
+            let checkpoint = Checkpoint::load(path)?;
+            checkpoint.expect_stage(Stage::Coarse, path)?;
+            check_output(path, &files)?;
+            Some(checkpoint)
+        }
+        None => None,
+    };
     let device = args.backend.device()?;
     let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     let mut points = Vec::new();
     for &coarse_share in &args.coarse_share {
         for &refine_share in &args.refine_share {
             let point = OperatingPoint { coarse_share, refine_share };
-            point.validate().map_err(|err| anyhow!("grid point {point:?}: {err}"))?;
+            for &paths in &args.paths {
+                let job = Job {
+                    paths: PathBudget::Count(paths),
+                    operating_point: Split::Point(point),
+                    ..Job::default()
+                };
+                job.validate().map_err(|err| anyhow!("--paths {paths}, grid point {point:?}: {err}"))?;
+            }
             points.push(point);
         }
     }
-    let images: Vec<_> = files_in(&args.dir)?.iter().filter_map(|path| load(path, args.size).ok()).collect();
+    let images: Vec<_> = files.iter().filter_map(|path| load(path, args.size).ok()).collect();
     if images.is_empty() {
         bail!("{}: no readable images", args.dir.display());
     }
@@ -180,8 +202,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
     write_atomic(&args.out, text.as_bytes()).with_context(|| args.out.display().to_string())?;
     eprintln!("best: {:?} ({:.2} dB); wrote {}", best.point, mean(best), args.out.display());
 
-    if let Some(path) = &args.write {
-        let checkpoint = Checkpoint::load(path)?;
+    if let (Some(path), Some(checkpoint)) = (&args.write, target) {
         let tuned = Checkpoint { inference: Some(best.point), ..checkpoint };
         tuned.save(path)?;
         eprintln!("stored the best point in {}", path.display());
