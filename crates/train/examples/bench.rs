@@ -17,10 +17,10 @@ use burn::optim::GradientsParams;
 use clap::Parser;
 use model::CoarseModel;
 use raster::Backend;
+use train::adamw;
 use train::config::{self, CoarseConfig};
-use train::data::{DataSource, Loader};
-use train::objective::{CoarseObjective, Objective};
-use train::optimizer::adamw;
+use train::{CoarseObjective, Objective};
+use train::{DataSource, Loader};
 
 /// Time training steps of a coarse config.
 #[derive(Parser, Debug)]

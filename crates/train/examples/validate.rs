@@ -15,10 +15,10 @@ use std::path::PathBuf;
 
 use clap::Parser;
 use model::{Checkpoint, CropBatch, Stage, load_coarse, load_refine};
+use train::Validation;
 use train::config::{self, CoarseConfig, RefineConfig};
-use train::inference::{CoarseCheck, RefineCheck};
-use train::objective::{CoarseObjective, Objective};
-use train::validation::Validation;
+use train::{CoarseCheck, RefineCheck};
+use train::{CoarseObjective, Objective};
 
 /// Score checkpoints on the validation set of a config.
 #[derive(Parser, Debug)]

@@ -7,8 +7,6 @@ use raster::SoftRasterOptions;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::validation::ValidationConfig;
-
 /// Everything `train-coarse` reads from its config file.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -599,26 +597,29 @@ impl DataConfig {
         )?;
         check((0.0..=1.0).contains(&self.synthetic_weight), "data.synthetic_weight must be within [0, 1]")?;
         check(
-            self.segments[0] >= 1 && self.segments[0] <= self.segments[1],
-            "data.segments must be [low, high] with 1 ≤ low ≤ high",
+            self.segments[0] >= 1
+                && self.segments[0] <= self.segments[1]
+                && self.segments[1] <= limits::REGIONS,
+            &format!("data.segments must be [low, high] with 1 ≤ low ≤ high ≤ {}", limits::REGIONS),
         )?;
-        check(self.compactness > 0.0, "data.compactness must be positive")?;
+        check(self.compactness > 0.0 && self.compactness.is_finite(), "data.compactness must be positive")?;
         check(
             self.oversegment.is_finite() && self.oversegment >= 1.0,
             "data.oversegment must be at least 1",
         )?;
         check((0.0..=1.0).contains(&self.min_compactness), "data.min_compactness must be within [0, 1]")?;
-        check(self.regions_per_scene >= 1, "data.regions_per_scene must be at least 1")?;
-        check(self.image_size >= 16, "data.image_size must be at least 16")?;
-        check(self.workers >= 1, "data.workers must be at least 1")?;
-        check(self.prefetch >= 1, "data.prefetch must be at least 1")
+        within("data.regions_per_scene", self.regions_per_scene, 1, limits::REGIONS)?;
+        let sizes = common::WORKING_SIZES;
+        within("data.image_size", self.image_size as usize, *sizes.start() as usize, *sizes.end() as usize)?;
+        within("data.workers", self.workers, 1, limits::WORKERS)?;
+        within("data.prefetch", self.prefetch, 1, limits::PREFETCH)
     }
 }
 
 impl OptimConfig {
     fn validate(&self) -> Result<(), InvalidSetting> {
         check(self.steps >= 1, "train.steps must be positive")?;
-        check(self.batch_size >= 1, "train.batch_size must be positive")?;
+        within("train.batch_size", self.batch_size, 1, limits::BATCH)?;
         check(self.lr > 0.0 && self.lr.is_finite(), "train.lr must be positive")?;
         check(self.min_lr >= 0.0 && self.min_lr <= self.lr, "train.min_lr must be within [0, train.lr]")?;
         check(self.weight_decay >= 0.0, "train.weight_decay must not be negative")?;
@@ -631,8 +632,8 @@ impl OptimConfig {
 
 impl RasterConfig {
     fn validate(&self) -> Result<(), InvalidSetting> {
-        check(self.segments_per_curve >= 1, "raster.segments_per_curve must be positive")?;
-        check(self.subrows >= 1, "raster.subrows must be positive")?;
+        within("raster.segments_per_curve", self.segments_per_curve, 1, limits::SUBDIVISIONS)?;
+        within("raster.subrows", self.subrows, 1, limits::SUBDIVISIONS)?;
         check(
             self.background.iter().all(|c| (0.0..=1.0).contains(c)),
             "raster.background must be RGB within [0, 1]",
@@ -650,6 +651,105 @@ impl BoundaryWeight {
 
 fn check(ok: bool, message: &str) -> Result<(), InvalidSetting> {
     if ok { Ok(()) } else { Err(InvalidSetting(message.to_string())) }
+}
+
+/// Refuses `value` of the setting `name` outside `low..=high`, naming both.
+fn within(name: &str, value: usize, low: usize, high: usize) -> Result<(), InvalidSetting> {
+    check((low..=high).contains(&value), &format!("{name} must be from {low} to {high}"))
+}
+
+/// Upper bounds of the sizes and counts a config sets: far above what trains on this hardware,
+/// low enough that a typo (`batch_size = 1e11`) is refused by name before training starts
+/// instead of aborting on an allocation or growing for minutes.
+mod limits {
+    /// Samples in a batch.
+    pub const BATCH: usize = 4096;
+    /// Regions of a scene (`data.segments`, `regions_per_scene`, `validation.segments`).
+    pub const REGIONS: usize = 20_000;
+    /// Data-loading threads.
+    pub const WORKERS: usize = 256;
+    /// Batches kept ready per worker.
+    pub const PREFETCH: usize = 1024;
+    /// `raster.segments_per_curve` and `raster.subrows`.
+    pub const SUBDIVISIONS: usize = 256;
+    /// Validation crops.
+    pub const CROPS: usize = 100_000;
+}
+
+/// The `[validation]` table.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ValidationConfig {
+    /// A folder of held-out images (never in the training data), relative to the working
+    /// directory.
+    pub images: Option<PathBuf>,
+    /// Crops in the set, taken evenly from the images.
+    pub crops: usize,
+    /// Region counts of the images' segmentations, spread geometrically over the images from
+    /// the first to the second. Regions are made as inference makes them
+    /// (`superpixel::SegmentOptions::ward`), whatever the training data uses, so runs with
+    /// different `[data]` are scored on the same crops.
+    pub segments: [usize; 2],
+    /// Steps between scores (and previews of the validation crops).
+    pub every: usize,
+    /// Images are scaled to this long side before segmenting: inference's working size, so the
+    /// crops are the regions inference cuts whatever resolution training uses.
+    pub image_size: u32,
+    /// E_r runs are also scored the way inference uses E_r ([`crate::inference::RefineCheck`]):
+    /// each image drawn by its regions (at the counts of `segments`), E_r given this share of
+    /// the paths on top, against the same paths spent on more regions.
+    pub refine_share: f32,
+    /// E_c runs are also scored the way inference uses E_c ([`crate::inference::CoarseCheck`]):
+    /// each image drawn by SuperSVG-B without E_r, E_c given this share of the budget (the
+    /// stored operating point's), against the regions alone at the same budget.
+    pub coarse_share: f32,
+}
+
+impl Default for ValidationConfig {
+    fn default() -> Self {
+        Self {
+            images: None,
+            crops: 64,
+            segments: [250, 2000],
+            every: 250,
+            image_size: 512,
+            refine_share: 0.1,
+            coarse_share: 0.2,
+        }
+    }
+}
+
+impl ValidationConfig {
+    /// Checks the values; the message names the key.
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        let invalid = |message: &str| Err(InvalidSetting(message.into()));
+        if self.every == 0 {
+            return invalid("validation.every must be positive");
+        }
+        within("validation.crops", self.crops, 1, limits::CROPS)?;
+        let sizes = common::WORKING_SIZES;
+        within(
+            "validation.image_size",
+            self.image_size as usize,
+            *sizes.start() as usize,
+            *sizes.end() as usize,
+        )?;
+        if self.segments[0] == 0 || self.segments[0] > self.segments[1] || self.segments[1] > limits::REGIONS
+        {
+            return invalid(&format!(
+                "validation.segments must be [low, high] with 1 ≤ low ≤ high ≤ {}",
+                limits::REGIONS
+            ));
+        }
+        // Each leaves the regions a share of the budget, as an operating point must.
+        if !(self.refine_share > 0.0 && self.refine_share < 1.0) {
+            return invalid("validation.refine_share must be within (0, 1)");
+        }
+        if !(self.coarse_share > 0.0 && self.coarse_share < 1.0) {
+            return invalid("validation.coarse_share must be within (0, 1)");
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -700,7 +800,29 @@ mod tests {
         let err = problem::<CoarseConfig>("[data]\nimagez = \"x\"\n[train]\n");
         assert!(err.contains("imagez"), "{err}");
         let err = problem::<CoarseConfig>("[data]\n[train]\nbatch_size = 0\n");
-        assert_eq!(err, "train.batch_size must be positive");
+        assert_eq!(err, "train.batch_size must be from 1 to 4096");
+        // Absurd sizes are refused by name before anything is allocated.
+        for (table, key, name) in [
+            ("train", "batch_size = 100000000000", "train.batch_size"),
+            ("data", "image_size = 200000", "data.image_size"),
+            ("data", "prefetch = 1000000000", "data.prefetch"),
+            ("data", "workers = 100000", "data.workers"),
+            ("data", "segments = [10, 1000000]", "data.segments"),
+            ("data", "compactness = inf", "data.compactness"),
+            ("raster", "segments_per_curve = 1000000", "raster.segments_per_curve"),
+            ("raster", "subrows = 100000", "raster.subrows"),
+            ("model", "paths = 1000000", "model.paths"),
+            ("model", "input_size = 65536", "model.input_size"),
+            ("validation", "crops = 10000000", "validation.crops"),
+        ] {
+            let text = match table {
+                "data" => format!("[data]\n{key}\n[train]\n"),
+                "train" => format!("[data]\n[train]\n{key}\n"),
+                _ => format!("[data]\n[train]\n[{table}]\n{key}\n"),
+            };
+            let err = problem::<CoarseConfig>(&text);
+            assert!(err.contains(&format!("{name} must be")), "{key}: {err}");
+        }
         let err = problem::<RefineConfig>("[data]\n[train]\n[loss]\nguidance = \"dtw\"\n");
         assert!(err.contains("dtw"), "{err}");
         let err = problem::<CoarseConfig>("[data]\n[train]\n[raster]\nrasterizer = \"fast\"\n");

@@ -21,8 +21,9 @@ use infer::{Context, Identity, Job, MAX_PATHS, Models, OPTIMIZER_STEPS, PathBudg
 use model::{CoarseModel, ModelConfig, OperatingPoint, PathOptimizer, RefineModel};
 use serde::Serialize;
 
+use crate::config::ValidationConfig;
 use crate::data::{DataError, ImageSet};
-use crate::validation::{ValidationConfig, region_count};
+use crate::validation::region_count;
 
 /// Crops per network call in the checks: inference's default batch.
 const BATCH: usize = 32;

@@ -1,15 +1,32 @@
 //! Training SuperSVG's two stages, shared by the `train-coarse` and `train-refine` programs:
-//! configuration files, the data stream, the objectives and the resumable training loop.
+//! configuration files ([`config`]), the data stream ([`DataSource`], [`Loader`]), the
+//! objectives ([`CoarseObjective`], [`RefineObjective`]), the resumable training loop
+//! ([`train`]) and the scores of a model on held-out images ([`Validation`], [`CoarseCheck`],
+//! [`RefineCheck`]). The programs are [`cli`]'s flags and one call each.
 
 pub mod cli;
 pub mod config;
-pub mod data;
-pub mod inference;
-pub mod objective;
-pub mod optimizer;
+mod data;
+mod inference;
+mod objective;
+mod optimizer;
 mod preview;
 mod report;
 mod schedule;
-pub mod teacher;
-pub mod trainer;
-pub mod validation;
+mod stop;
+mod teacher;
+mod trainer;
+mod validation;
+
+pub use data::{
+    Batch, DataError, DataSource, DrawnBox, DrawnBoxes, ImageSet, Loader, Samples, synthetic_scene,
+};
+pub use inference::{AtInference, CoarseCheck, CoarseScores, RefineCheck, RefineScores};
+pub use objective::{CoarseObjective, Objective, RefineObjective, StepOutput};
+pub use optimizer::adamw;
+pub use stop::{catch_interrupts, interrupted};
+pub use trainer::{
+    ResumeProblem, Run, Start, Summary, TrainError, TrainingState, checkpoint_path, model_from, resume_from,
+    train,
+};
+pub use validation::{Scores, Validation};

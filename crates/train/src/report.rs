@@ -30,6 +30,25 @@ pub struct StepRecord {
     pub samples_per_second: f64,
 }
 
+/// Cuts the metrics file at `path` back to its whole lines of steps up to `start`: a run killed
+/// after its last checkpoint (`kill -9`, a power cut) logged steps that the resumed run takes
+/// again, and maybe half a line; each step then appears once.
+fn cut_back(path: &Path, start: usize) -> std::io::Result<()> {
+    let text = match std::fs::read_to_string(path) {
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        read => read?,
+    };
+    let step = |line: &str| serde_json::from_str::<Value>(line).ok()?.get("step")?.as_u64();
+    let kept: String = text
+        .split_inclusive('\n')
+        .filter(|line| line.ends_with('\n') && step(line).is_some_and(|step| step <= start as u64))
+        .collect();
+    if kept.len() == text.len() {
+        return Ok(());
+    }
+    common::write::write_atomic(path, kept.as_bytes())
+}
+
 /// Progress display and the metrics file.
 pub struct Reporter {
     bar: Bar,
@@ -39,12 +58,13 @@ pub struct Reporter {
 
 impl Reporter {
     /// Opens `dir/metrics.jsonl` — started again when `fresh`, continued otherwise (a resumed
-    /// run) — and shows progress from `start` to `total` steps.
+    /// run, from its lines up to step `start`) — and shows progress from `start` to `total` steps.
     pub fn open(dir: &Path, start: usize, total: usize, fresh: bool) -> std::io::Result<Self> {
         let path = dir.join("metrics.jsonl");
         let metrics = if fresh {
             OpenOptions::new().create(true).write(true).truncate(true).open(path)?
         } else {
+            cut_back(&path, start)?;
             OpenOptions::new().create(true).append(true).open(path)?
         };
         let bar = Bar::new("", total as u64, "steps", true);
@@ -151,5 +171,43 @@ impl Reporter {
     /// Removes the progress bar.
     pub fn finish(&self) {
         self.bar.finish();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_resumed_run_logs_each_step_once() {
+        let dir = std::env::temp_dir().join(format!("supersvg-report-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let record = |step| StepRecord {
+            step,
+            lr: 1e-3,
+            loss: 0.5,
+            values: vec![("l2", 0.5)],
+            seconds: 0.1,
+            data_seconds: 0.0,
+            samples_per_second: 10.0,
+        };
+        let steps = || -> Vec<u64> {
+            let text = std::fs::read_to_string(dir.join("metrics.jsonl")).unwrap();
+            text.lines()
+                .map(|line| serde_json::from_str::<Value>(line).unwrap()["step"].as_u64().unwrap())
+                .collect()
+        };
+        let mut reporter = Reporter::open(&dir, 0, 10, true).unwrap();
+        (1..=5).for_each(|step| reporter.record(&record(step)).unwrap());
+        drop(reporter);
+        // Killed after step 5 with its checkpoint at step 3, mid-way through a line.
+        let mut file = OpenOptions::new().append(true).open(dir.join("metrics.jsonl")).unwrap();
+        file.write_all(b"{\"step\": 6, \"lo").unwrap();
+        let mut reporter = Reporter::open(&dir, 3, 10, false).unwrap();
+        assert_eq!(steps(), [1, 2, 3]);
+        (4..=6).for_each(|step| reporter.record(&record(step)).unwrap());
+        assert_eq!(steps(), [1, 2, 3, 4, 5, 6]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

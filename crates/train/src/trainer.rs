@@ -3,7 +3,6 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use burn::module::Module;
@@ -21,6 +20,7 @@ use crate::optimizer::adamw;
 use crate::preview::write_preview;
 use crate::report::{Reporter, StepRecord};
 use crate::schedule::learning_rate;
+use crate::stop::{catch_interrupts, interrupted};
 use crate::validation::Validation;
 
 /// Why training stopped early.
@@ -208,24 +208,6 @@ pub fn resume_from<O: Objective>(dir: &Path) -> Result<(Checkpoint, Bytes, Train
 
 /// Horizon (steps) of the moving averages kept in [`TrainingState::recent`].
 const RECENT_STEPS: f32 = 50.0;
-
-static INTERRUPTED: AtomicBool = AtomicBool::new(false);
-
-/// Makes Ctrl-C, SIGTERM and SIGHUP (what `timeout`, Slurm and `docker stop` send) request a
-/// checkpoint and a clean stop; installed once per process, by the programs before they read
-/// their data, so a stop while images are decoded is heard too.
-pub fn catch_interrupts() {
-    static INSTALLED: std::sync::Once = std::sync::Once::new();
-    INSTALLED.call_once(|| {
-        // Without a handler (another one installed), Ctrl-C simply ends the process.
-        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
-    });
-}
-
-/// Whether a stop was requested ([`catch_interrupts`]).
-pub fn interrupted() -> bool {
-    INTERRUPTED.load(Ordering::SeqCst)
-}
 
 /// Trains `start.model` with `objective` for `optim.steps` steps (from where `start` left off),
 /// writing `metrics.jsonl`, previews and checkpoints in `run.dir`.

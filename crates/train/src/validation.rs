@@ -5,84 +5,15 @@
 //! only if it lowers the error inside the region (inference's acceptance test). The figure to
 //! beat is the flat fill itself.
 
-use std::path::PathBuf;
-
 use image::Rgb32FImage;
-use model::{InvalidSetting, MIN_REGION_PIXELS, ModelConfig};
+use model::{MIN_REGION_PIXELS, ModelConfig};
 use raster::{Path, coverage_exact, paint_exact};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use superpixel::{RegionCrop, SegmentOptions, segment};
 use tiny_skia::{Color, Pixmap};
 
-use crate::config::DataConfig;
+use crate::config::{DataConfig, ValidationConfig};
 use crate::data::{DataError, ImageSet};
-
-/// The `[validation]` table.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ValidationConfig {
-    /// A folder of held-out images (never in the training data), relative to the working
-    /// directory.
-    pub images: Option<PathBuf>,
-    /// Crops in the set, taken evenly from the images.
-    pub crops: usize,
-    /// Region counts of the images' segmentations, spread geometrically over the images from
-    /// the first to the second. Regions are made as inference makes them
-    /// (`superpixel::SegmentOptions::ward`), whatever the training data uses, so runs with
-    /// different `[data]` are scored on the same crops.
-    pub segments: [usize; 2],
-    /// Steps between scores (and previews of the validation crops).
-    pub every: usize,
-    /// Images are scaled to this long side before segmenting: inference's working size, so the
-    /// crops are the regions inference cuts whatever resolution training uses.
-    pub image_size: u32,
-    /// E_r runs are also scored the way inference uses E_r ([`crate::inference::RefineCheck`]):
-    /// each image drawn by its regions (at the counts of `segments`), E_r given this share of
-    /// the paths on top, against the same paths spent on more regions.
-    pub refine_share: f32,
-    /// E_c runs are also scored the way inference uses E_c ([`crate::inference::CoarseCheck`]):
-    /// each image drawn by SuperSVG-B without E_r, E_c given this share of the budget (the
-    /// stored operating point's), against the regions alone at the same budget.
-    pub coarse_share: f32,
-}
-
-impl Default for ValidationConfig {
-    fn default() -> Self {
-        Self {
-            images: None,
-            crops: 64,
-            segments: [250, 2000],
-            every: 250,
-            image_size: 512,
-            refine_share: 0.1,
-            coarse_share: 0.2,
-        }
-    }
-}
-
-impl ValidationConfig {
-    /// Checks the values; the message names the key.
-    pub fn validate(&self) -> Result<(), InvalidSetting> {
-        let invalid = |message: &str| Err(InvalidSetting(message.into()));
-        if self.crops == 0 || self.every == 0 {
-            return invalid("validation.crops and validation.every must be positive");
-        }
-        if self.image_size < 16 {
-            return invalid("validation.image_size must be at least 16");
-        }
-        if self.segments[0] == 0 || self.segments[0] > self.segments[1] {
-            return invalid("validation.segments must be [low, high] with 1 ≤ low ≤ high");
-        }
-        // Each leaves the regions a share of the budget, as an operating point must.
-        if !(self.refine_share > 0.0 && self.refine_share < 1.0) {
-            return invalid("validation.refine_share must be within (0, 1)");
-        }
-        if !(self.coarse_share > 0.0 && self.coarse_share < 1.0) {
-            return invalid("validation.coarse_share must be within (0, 1)");
-        }
-        Ok(())
-    }
-}
 
 /// The validation crops.
 pub struct Validation {

@@ -40,6 +40,18 @@ fn bad_configs_are_refused_by_name() {
 
     let err = fails(COARSE, &["--config", dir.join("missing.toml").to_str().unwrap()]);
     assert!(err.contains("missing.toml"), "{err}");
+
+    // Steps are at least one, from the config or the flag: no untrained checkpoint, no NaN loss.
+    let smoke_coarse = smoke("smoke-coarse.toml");
+    let out = dir.join("zero");
+    let refused = Command::new(COARSE)
+        .args(["--config", smoke_coarse.to_str().unwrap(), "--out", out.to_str().unwrap(), "--steps", "0"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "a usage error: {err}");
+    assert!(err.contains("--steps") && err.contains("'0'"), "{err}");
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
 }
 
 #[test]
@@ -122,6 +134,14 @@ fn refinement_needs_a_coarse_checkpoint() {
         .output()
         .unwrap();
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    // An export over its own input, by any name, is refused before it reads: the run can still resume.
+    let before = std::fs::read(&coarse_ckpt).unwrap();
+    let dotted = coarse_ckpt.parent().unwrap().join("../").join(coarse_ckpt.strip_prefix(&dir).unwrap());
+    for output in [&coarse_ckpt, &dotted] {
+        let err = fails(EXPORT, &[coarse_ckpt.to_str().unwrap(), output.to_str().unwrap()]);
+        assert!(err.contains("refusing to overwrite"), "{err}");
+    }
+    assert!(std::fs::read(&coarse_ckpt).unwrap() == before, "the training checkpoint changed");
     let err = fails(
         COARSE,
         &[

@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
 use model::{CoarseModel, RefineModel, load_coarse};
+use train::RefineCheck;
 use train::config::{self, CoarseConfig, Guidance, Rasterizer, RefineConfig};
-use train::inference::RefineCheck;
-use train::objective::{CoarseObjective, Objective, RefineObjective};
-use train::trainer::{Run, checkpoint_path, model_from, resume_from, train};
-use train::validation::{Validation, ValidationConfig};
+use train::{CoarseObjective, Objective, RefineObjective};
+use train::{Run, checkpoint_path, model_from, resume_from, train};
+use train::{Validation, config::ValidationConfig};
 
 /// Model initialization draws from the device's random generator, which is shared by the whole
 /// process: tests that compare initializations must not run at the same time.
@@ -25,16 +25,29 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// `(step, value)` of `key` in every line of a run's metrics file that has it.
+/// The `(step, value)` pairs of `key` in a run's metrics.jsonl; a key no line holds fails, so a
+/// renamed metric cannot pass an assertion over an empty list.
 fn metric(dir: &Path, key: &str) -> Vec<(usize, f64)> {
-    std::fs::read_to_string(dir.join("metrics.jsonl"))
+    let values: Vec<_> = std::fs::read_to_string(dir.join("metrics.jsonl"))
         .unwrap()
         .lines()
         .filter_map(|line| {
             let json: serde_json::Value = serde_json::from_str(line).unwrap();
             Some((json["step"].as_u64().unwrap() as usize, json[key].as_f64()?))
         })
-        .collect()
+        .collect();
+    assert!(!values.is_empty(), "no line of {}/metrics.jsonl holds {key:?}", dir.display());
+    values
+}
+
+/// A renamed metric fails the reader instead of passing `.all(..)` over nothing.
+#[test]
+#[should_panic(expected = "holds \"l2\"")]
+fn a_metric_no_line_holds_fails() {
+    let dir = scratch("renamed-metric");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("metrics.jsonl"), "{\"step\": 1, \"loss\": 0.5}\n").unwrap();
+    metric(&dir, "l2");
 }
 
 fn smoke_coarse() -> CoarseConfig {
@@ -288,11 +301,8 @@ fn fitted_colours_score_the_shapes_inference_keeps() {
     let student = RefineModel::new(&model_config, &device).inherit_encoder(&teacher);
     let mut config: RefineConfig = config::load(&workspace().join("configs/smoke-refine.toml")).unwrap();
     config.data.canvas = train::config::SampleCanvas::Fallback;
-    let samples = train::data::DataSource::new(&config.data, &model_config, 4, 7)
-        .unwrap()
-        .batch(0)
-        .unwrap()
-        .tensors(&device);
+    let samples =
+        train::DataSource::new(&config.data, &model_config, 4, 7).unwrap().batch(0).unwrap().tensors(&device);
     for rasterizer in [Rasterizer::Soft, Rasterizer::Exact] {
         config.raster.rasterizer = rasterizer;
         let mut step = |colours| {

@@ -18,7 +18,7 @@ use model::Checkpoint;
 struct Args {
     /// A checkpoint written by train-coarse or train-refine.
     input: PathBuf,
-    /// Where to write the inference checkpoint (atomically).
+    /// Where to write the inference checkpoint (atomically; never over the input).
     output: PathBuf,
     /// Precision of the stored weights.
     #[arg(long, value_enum, default_value = "f16")]
@@ -38,6 +38,11 @@ fn main() -> ExitCode {
         Precision::F16 => DType::F16,
         Precision::F32 => DType::F32,
     };
+    // Before reading anything: an export over its own input would leave a run that cannot resume.
+    if let Err(err) = common::outputs::check_output(&args.output, &[&args.input]) {
+        eprintln!("export-model: {err}");
+        return ExitCode::FAILURE;
+    }
     let exported = Checkpoint::load(&args.input)
         .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
         .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint));

@@ -33,7 +33,7 @@ impl ImageSet {
         let decoded: Vec<Option<Rgb32FImage>> = files
             .par_iter()
             .map(|path| match open(path, &options) {
-                _ if crate::trainer::interrupted() => None,
+                _ if crate::stop::interrupted() => None,
                 Ok(loaded) => Some(loaded.image),
                 Err(err) => {
                     eprintln!("warning: skipping {err}");
@@ -41,7 +41,7 @@ impl ImageSet {
                 }
             })
             .collect();
-        if crate::trainer::interrupted() {
+        if crate::stop::interrupted() {
             return Err(DataError::Interrupted(folder.to_path_buf()));
         }
         let images: Vec<Rgb32FImage> = decoded.into_iter().flatten().collect();
@@ -89,7 +89,15 @@ fn collect_files(folder: &Path, seen: &mut HashSet<PathBuf>, files: &mut Vec<Pat
             .and_then(|e| e.to_str())
             .is_some_and(|e| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
         {
-            files.push(path);
+            // A pipe would block its reader for ever, a device such as /dev/zero never ends.
+            if path.is_file() {
+                files.push(path);
+            } else {
+                eprintln!(
+                    "warning: skipping {}: not a regular file (a pipe, a device or a dead link)",
+                    path.display()
+                );
+            }
         }
     }
 }
@@ -120,6 +128,25 @@ mod tests {
 
         let err = ImageSet::load(&dir, 64).err().unwrap();
         assert!(matches!(err, DataError::NotAFolder(_)) && err.to_string().contains("not a folder"), "{err}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn pipes_and_devices_are_skipped_not_read() {
+        let dir = std::env::temp_dir().join(format!("supersvg-images-fifo-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        RgbImage::from_pixel(20, 10, image::Rgb([1, 2, 3])).save(dir.join("a.png")).unwrap();
+        let made = std::process::Command::new("mkfifo").arg(dir.join("pipe.png")).status().unwrap();
+        assert!(made.success());
+        std::os::unix::fs::symlink("/dev/zero", dir.join("zero.png")).unwrap();
+        // On a thread, so that a reader blocked on the pipe fails the test instead of hanging it.
+        let (done, result) = std::sync::mpsc::channel();
+        let folder = dir.clone();
+        std::thread::spawn(move || done.send(ImageSet::load(&folder, 64).map(|set| set.len())));
+        let loaded = result.recv_timeout(std::time::Duration::from_secs(30)).expect("the loader blocked");
+        assert_eq!(loaded.unwrap(), 1, "only the regular file");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[cfg(unix)]
