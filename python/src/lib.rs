@@ -3,9 +3,10 @@
 //! Python's types (paths, numpy arrays, `paths="auto"`) into their arguments.
 //!
 //! The work runs with the GIL released, on the built-in models, loaded once per process.
-//! Errors become Python exceptions carrying the library's message: an image that cannot be read
-//! or a budget out of range is a `ValueError`, a file that cannot be opened or written an
-//! `OSError` (`FileNotFoundError` when it does not exist), named in the message.
+//! Errors become Python exceptions carrying the library's message: an image that cannot be read,
+//! a budget out of range or an `out` that is the input is a `ValueError`, a file that cannot be
+//! opened or written an `OSError` (`FileNotFoundError` when it does not exist), named in the
+//! message. `out` is checked before any work.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -13,6 +14,7 @@ use std::sync::OnceLock;
 
 use burn::tensor::Device;
 use common::decode::{self, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
+use common::outputs::{OutputError, check_output};
 use common::write::write_atomic;
 use infer::{AutoRule, FinetuneOptions, Job, Limit, Models, PathBudget};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -47,7 +49,11 @@ impl Request {
         finetune_secs: Option<f64>,
         size: u32,
         out: Option<PathBuf>,
+        input: Option<&Path>,
     ) -> PyResult<Self> {
+        if let Some(out) = &out {
+            check_out(out, input)?;
+        }
         if !decode::WORKING_SIZES.contains(&size) {
             let (low, high) = (decode::WORKING_SIZES.start(), decode::WORKING_SIZES.end());
             return Err(PyValueError::new_err(format!(
@@ -113,6 +119,25 @@ impl Request {
     }
 }
 
+/// Refuses, before any work, an `out` that is not an `.svg` file, that is the input (by any
+/// name), or that cannot be written where it goes (its folder, its name's length).
+fn check_out(out: &Path, input: Option<&Path>) -> PyResult<()> {
+    if !out.extension().is_some_and(|ext| ext.eq_ignore_ascii_case("svg")) {
+        return Err(PyValueError::new_err(format!("out={}: the SVG's file must end in .svg", out.display())));
+    }
+    use std::io::ErrorKind;
+    check_output(out, input.as_slice()).map_err(|err| {
+        let kind = match &err {
+            OutputError::IsInput { .. } => return PyValueError::new_err(err.to_string()),
+            OutputError::NotWritable { source, .. } => source.kind(),
+            OutputError::IsFolder(_) => ErrorKind::IsADirectory,
+            OutputError::NameTooLong { .. } => ErrorKind::InvalidFilename,
+            OutputError::NoFolder { .. } | OutputError::DanglingLink(_) => ErrorKind::NotFound,
+        };
+        std::io::Error::new(kind, err.to_string()).into()
+    })
+}
+
 /// A decoding error as Python says it: `OSError` (its subclass by kind) when the file cannot be
 /// read, `ValueError` when what was read is no usable image.
 fn decode_error(err: DecodeError) -> PyErr {
@@ -141,7 +166,8 @@ fn from_file(
     size: u32,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
-    Request::new(paths, finetune_secs, size, out)?.run(py, |options| decode::open(&path, options))
+    Request::new(paths, finetune_secs, size, out, Some(&path))?
+        .run(py, |options| decode::open(&path, options))
 }
 
 /// Vectorizes an image file's bytes (any format the files may have). Returns `(svg, warnings)`.
@@ -155,7 +181,8 @@ fn from_bytes(
     size: u32,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
-    Request::new(paths, finetune_secs, size, out)?.run(py, |options| decode::decode(data, "<bytes>", options))
+    Request::new(paths, finetune_secs, size, out, None)?
+        .run(py, |options| decode::decode(data, "<bytes>", options))
 }
 
 /// Vectorizes `height` rows of `width` pixels of `channels` (1, 3 or 4) bytes each, in C order.
@@ -176,7 +203,7 @@ fn from_pixels(
 ) -> PyResult<(String, Vec<String>)> {
     let layout = PixelLayout::from_channels(channels)
         .ok_or_else(|| PyValueError::new_err(format!("{channels} channels: an array needs 1, 3 or 4")))?;
-    Request::new(paths, finetune_secs, size, out)?
+    Request::new(paths, finetune_secs, size, out, None)?
         .run(py, |options| decode::from_pixels(data, (width, height), layout, "<array>", options))
 }
 
@@ -187,5 +214,6 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(from_bytes, module)?)?;
     module.add_function(wrap_pyfunction!(from_pixels, module)?)?;
     module.add("MAX_PATHS", infer::MAX_PATHS)?;
+    module.add("MAX_WORKING_SIZE", *decode::WORKING_SIZES.end())?;
     Ok(())
 }

@@ -29,9 +29,11 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, out=None):
     ``paths`` is the most paths to draw (2 to :data:`MAX_PATHS`) or ``"auto"``: as many as the
     image needs. ``finetune_secs`` fine-tunes every path against the image for that many seconds
     (SuperSVG-F). ``size`` is the long side, in pixels, of the working image (the SVG keeps the
-    input's size). ``out`` also writes the SVG to that file (whole or not at all).
+    input's size). ``out`` also writes the SVG to that file (whole or not at all): a ``.svg`` file,
+    never the input, checked before any work.
 
-    Raises ``ValueError`` for an image that cannot be read or an argument out of range,
+    Raises ``ValueError`` for an image that cannot be read, an argument out of range or an ``out``
+    that is the input or not ``.svg``,
     ``OSError`` (``FileNotFoundError`` …) for a file that cannot be opened or written, ``TypeError``
     for an input of another type. What the job did differently from what was asked (fewer paths
     than the budget, fewer regions) is said with :func:`warnings.warn`.
@@ -39,8 +41,13 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, out=None):
     budget = _budget(paths)
     if size is None or isinstance(size, bool) or not isinstance(size, int) or size < 0:
         raise ValueError(f"size {size!r} is not a number of pixels")
+    if size > _native.MAX_WORKING_SIZE:
+        raise ValueError(f"size {size} is not a working size: at most {_native.MAX_WORKING_SIZE} pixels")
     if finetune_secs is not None:
-        finetune_secs = float(finetune_secs)
+        try:
+            finetune_secs = float(finetune_secs)
+        except OverflowError:
+            raise ValueError(f"finetune_secs={finetune_secs}: out of range") from None
     if out is not None:
         out = os.fsdecode(os.fspath(out))
     options = (budget, finetune_secs, size, out)
@@ -68,7 +75,9 @@ def _budget(paths):
         raise ValueError(f"paths={paths!r}: give a number of paths or 'auto'")
     if paths < 0:
         raise ValueError(f"paths={paths}: a budget is a positive number of paths")
-    return paths  # the library checks its range
+    if paths > MAX_PATHS:
+        raise ValueError(f"paths={paths} is out of range: at most {MAX_PATHS}")
+    return paths  # the library checks the rest of its range
 
 
 def _pixels(image):

@@ -103,6 +103,32 @@ def test_bad_input_is_a_python_exception_naming_the_problem(tmp_path):
     assert not (tmp_path / "no-such-folder").exists()
 
 
+def test_huge_numbers_are_value_errors():
+    for kwargs in [dict(paths=10**30), dict(size=10**12), dict(size=2**32), dict(finetune_secs=10**400)]:
+        with pytest.raises(ValueError):
+            supersvg.vectorize(EXAMPLE, **kwargs)
+
+
+def test_out_is_never_the_input_and_is_checked_before_work(tmp_path):
+    victim = tmp_path / "victim.png"
+    victim.write_bytes(EXAMPLE.read_bytes())
+    with pytest.raises(ValueError, match="refusing to overwrite"):
+        supersvg.vectorize(victim, paths=20, size=64, out=victim)
+    link = tmp_path / "link.svg"
+    link.symlink_to(victim)
+    with pytest.raises(ValueError, match="refusing to overwrite"):
+        supersvg.vectorize(victim, paths=20, size=64, out=link)
+    with pytest.raises(ValueError, match=r"\.svg"):
+        supersvg.vectorize(victim, paths=20, size=64, out=tmp_path / "x.png")
+    assert victim.read_bytes() == EXAMPLE.read_bytes()
+    # A name the file system cannot hold is refused before the work; the longest it holds works.
+    with pytest.raises(OSError, match="longer than"):
+        supersvg.vectorize(EXAMPLE, paths=20, size=64, out=tmp_path / ("n" * 252 + ".svg"))
+    longest = tmp_path / ("n" * 251 + ".svg")
+    assert supersvg.vectorize(EXAMPLE, paths=20, size=64, out=longest) == longest.read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["link.svg", "victim.png", longest.name])
+
+
 def test_too_few_paths_is_said_as_a_warning():
     flat = numpy.full((32, 32, 3), 120, numpy.uint8)
     with pytest.warns(UserWarning, match="of 50 paths drawn"):
