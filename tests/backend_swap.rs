@@ -8,9 +8,9 @@ use burn::optim::{GradientsParams, SgdConfig};
 use burn::tensor::{Device, Gradients, Tensor};
 use supersvg::model::{CoarseModel, ModelConfig, RefineModel};
 use supersvg::raster::Backend;
+use supersvg::train::DataSource;
 use supersvg::train::config::{self, CoarseConfig, RefineConfig};
-use supersvg::train::data::DataSource;
-use supersvg::train::objective::{CoarseObjective, Objective, RefineObjective};
+use supersvg::train::{CoarseObjective, Objective, RefineObjective};
 
 /// Every float parameter's values, and its gradient when `gradients` are given, in visit order.
 struct Collect<'a> {
@@ -44,7 +44,7 @@ struct StepResult {
 fn step<O: Objective>(
     objective: &O,
     model: O::Model,
-    batch: &supersvg::train::data::Batch,
+    batch: &supersvg::train::Batch,
     device: &Device,
 ) -> StepResult {
     let output = objective.step(&model, &batch.tensors(device), 0);

@@ -5,8 +5,8 @@ use image::{Rgb, Rgb32FImage};
 use supersvg::infer::Scene;
 use supersvg::model::{CropBatch, InputSpec, ModelConfig, Preset};
 use supersvg::superpixel::{SegmentOptions, segment};
+use supersvg::train::DataSource;
 use supersvg::train::config::DataConfig;
-use supersvg::train::data::DataSource;
 
 fn photo() -> Rgb32FImage {
     Rgb32FImage::from_fn(80, 56, |x, y| {
