@@ -1,6 +1,7 @@
 //! `infer` under faults: planted links, stops, huge inputs, broken pipes and misleading inputs
 //! never lose a file, follow a link, hang or say the wrong thing.
 
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
@@ -121,6 +122,22 @@ fn peak_kb(mut child: Child) -> (u64, usize, std::process::ExitStatus) {
     }
 }
 
+/// The peak resident memory (kB) of `infer INPUT -o SVG --paths PATHS` with the fixture's E_c
+/// and no E_r, which must succeed and be sampled at least once.
+#[cfg(target_os = "linux")]
+fn peak_kb_of_infer(fixture: &Fixture, input: &Path, svg: &Path, paths: &str) -> u64 {
+    let child = Command::new(INFER)
+        .args([input.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--paths", paths, "--quiet"])
+        .args(["--coarse", fixture.path("coarse.ckpt").to_str().unwrap(), "--no-refine"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (peak, samples, status) = peak_kb(child);
+    assert!(status.success());
+    assert!(samples > 0 && peak > 0, "no memory sample was read: {samples} samples, peak {peak} kB");
+    peak
+}
+
 /// An 8192² 16-bit RGBA PNG is read into the working size without a copy at its own size.
 #[cfg(target_os = "linux")]
 #[test]
@@ -139,15 +156,7 @@ fn memory_follows_the_working_size_not_the_file() {
     }
     writer.finish().unwrap();
     let svg = fixture.path("big.svg");
-    let child = Command::new(INFER)
-        .args([big.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--paths", "20", "--quiet"])
-        .args(["--coarse", fixture.path("coarse.ckpt").to_str().unwrap(), "--no-refine"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (peak, samples, status) = peak_kb(child);
-    assert!(status.success());
-    assert!(samples > 0 && peak > 0, "no memory sample was read: {samples} samples, peak {peak} kB");
+    let peak = peak_kb_of_infer(&fixture, &big, &svg, "20");
     assert!(std::fs::read_to_string(&svg).unwrap().contains("viewBox=\"0 0 8192 8192\""));
     assert!(peak <= 300 * 1024, "peak RSS {} MB", peak / 1024);
 }
@@ -168,15 +177,7 @@ fn a_png_profile_bomb_stays_small() {
     writer.finish().unwrap();
     assert!(std::fs::metadata(&bomb).unwrap().len() < 1 << 20);
     let svg = fixture.path("bomb.svg");
-    let child = Command::new(INFER)
-        .args([bomb.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--paths", "4", "--quiet"])
-        .args(["--coarse", fixture.path("coarse.ckpt").to_str().unwrap(), "--no-refine"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (peak, samples, status) = peak_kb(child);
-    assert!(status.success());
-    assert!(samples > 0 && peak > 0, "no memory sample was read: {samples} samples, peak {peak} kB");
+    let peak = peak_kb_of_infer(&fixture, &bomb, &svg, "4");
     assert!(svg.exists());
     assert!(peak <= 200 * 1024, "peak RSS {} MB", peak / 1024);
 }
