@@ -112,14 +112,12 @@ def test_huge_numbers_are_value_errors():
 def test_out_is_never_the_input_and_is_checked_before_work(tmp_path):
     victim = tmp_path / "victim.png"
     victim.write_bytes(EXAMPLE.read_bytes())
-    with pytest.raises(ValueError, match="refusing to overwrite"):
+    with pytest.raises(ValueError, match=r"must end in \.svg"):
         supersvg.vectorize(victim, paths=20, size=64, out=victim)
     link = tmp_path / "link.svg"
     link.symlink_to(victim)
     with pytest.raises(ValueError, match="refusing to overwrite"):
         supersvg.vectorize(victim, paths=20, size=64, out=link)
-    with pytest.raises(ValueError, match=r"\.svg"):
-        supersvg.vectorize(victim, paths=20, size=64, out=tmp_path / "x.png")
     assert victim.read_bytes() == EXAMPLE.read_bytes()
     # A name the file system cannot hold is refused before the work; the longest it holds works.
     with pytest.raises(OSError, match="longer than"):
