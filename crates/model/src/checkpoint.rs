@@ -296,21 +296,35 @@ impl Checkpoint {
 
     /// Reads a checkpoint from `path`.
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
+        Self::open(path)?.into_checkpoint()
+    }
+
+    /// Reads a checkpoint held in memory (one built into a program); `name` stands for it in
+    /// errors, as a path does for a file.
+    pub fn from_bytes(bytes: &[u8], name: &Path) -> Result<Self, CheckpointError> {
+        Self::open_bytes(bytes, name)?.into_checkpoint()
+    }
+
+    /// Opens the checkpoint at `path`: what it says about itself, read and checked now, and
+    /// its weights, read when a network is built from them ([`Opened::build`]).
+    pub fn open(path: &Path) -> Result<Opened, CheckpointError> {
         if path.is_dir() {
             return Err(CheckpointError::Folder { path: path.to_path_buf() });
         }
         if !path.exists() {
             return Err(CheckpointError::Missing { path: path.to_path_buf() });
         }
-        Self::read(path).map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
+        Reader::from_file(path)
+            .map_err(FormatProblem::from)
+            .and_then(|reader| Opened::new(reader, path))
+            .map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
     }
 
-    /// Reads a checkpoint held in memory (one built into a program); `name` stands for it in
-    /// errors, as a path does for a file.
-    pub fn from_bytes(bytes: &[u8], name: &Path) -> Result<Self, CheckpointError> {
+    /// [`Checkpoint::open`] of a checkpoint held in memory; `name` stands for it in errors.
+    pub fn open_bytes(bytes: &[u8], name: &Path) -> Result<Opened, CheckpointError> {
         Reader::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
             .map_err(FormatProblem::from)
-            .and_then(Self::parse)
+            .and_then(|reader| Opened::new(reader, name))
             .map_err(|problem| CheckpointError::Format { path: name.to_path_buf(), problem })
     }
 
@@ -321,13 +335,63 @@ impl Checkpoint {
         checksum(entries.iter().map(|e| (e.name.as_str(), &e.data)))
     }
 
-    /// [`Checkpoint::load`] of a file that exists.
-    fn read(path: &Path) -> Result<Self, FormatProblem> {
-        Self::parse(Reader::from_file(path)?)
+    /// Fails unless the checkpoint holds `stage`.
+    pub fn expect_stage(&self, stage: Stage, path: &Path) -> Result<(), CheckpointError> {
+        if self.stage == stage {
+            Ok(())
+        } else {
+            Err(CheckpointError::WrongStage {
+                path: path.to_path_buf(),
+                expected: stage.name(),
+                found: self.stage.name(),
+            })
+        }
     }
 
-    /// The checkpoint in a burnpack `reader`.
-    fn parse(reader: Reader) -> Result<Self, FormatProblem> {
+    /// Applies the stored weights to `model`, in f32.
+    pub fn apply<M: Module>(&self, model: M, path: &Path) -> Result<M, CheckpointError> {
+        let weights = convert(&self.model, DType::F32)
+            .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
+        load_record(model, weights, path)
+    }
+}
+
+/// `model` with the weights of `record` (a burnpack buffer of f32 tensors). In f32, the dtype
+/// every model here computes in, loaded as stored: casting to each parameter's own dtype
+/// instead reads its current value, which draws the random initialization of every weight
+/// only to replace it.
+fn load_record<M: Module>(model: M, record: Bytes, path: &Path) -> Result<M, CheckpointError> {
+    let mismatch =
+        |source: RecordError| CheckpointError::Mismatch { path: path.to_path_buf(), problem: source.into() };
+    let record = ModuleRecord::from_bytes(record).map_err(mismatch)?;
+    model.try_load_record(record).map_err(mismatch)
+}
+
+/// A checkpoint opened ([`Checkpoint::open`]): what it says about itself, read and checked
+/// without its tensors, and its weights, read and verified only when a network is built from
+/// them. Inference opens both networks at once and builds each the first time it is used.
+pub struct Opened {
+    /// Which network the weights belong to.
+    pub stage: Stage,
+    /// The network's configuration.
+    pub model_config: ModelConfig,
+    /// How inference should split a path budget with this model, when it was measured.
+    pub inference: Option<OperatingPoint>,
+    /// The trainer's own state as JSON, when stored.
+    pub training: Option<String>,
+    /// The weights' checksum as stored ([`Checkpoint::weights_checksum`]), verified when they
+    /// are read; none in the first format.
+    pub checksum: Option<String>,
+    /// Whether the format stores [`state_checksum`].
+    state_checked: bool,
+    metadata: std::collections::BTreeMap<String, String>,
+    reader: Reader,
+    name: PathBuf,
+}
+
+impl Opened {
+    /// What the checkpoint in `reader` says about itself, checked; `name` stands for it in errors.
+    fn new(reader: Reader, name: &Path) -> Result<Self, FormatProblem> {
         let metadata = reader.metadata().clone();
         let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
         let format = get(key::FORMAT)?;
@@ -348,75 +412,94 @@ impl Checkpoint {
                 Some(point)
             }
         };
-        let stored = (format != FORMAT_UNCHECKED).then(|| get(key::CHECKSUM)).transpose()?;
-        let (model, optimizer) = split(reader.into_tensors()?, stored.as_deref())?;
-        if format == FORMAT {
-            let stored = get(key::STATE)?;
-            let computed = state_checksum(State {
-                stage: stage.name(),
-                model: &get(key::MODEL)?,
-                training: metadata.get(key::TRAINING).map(String::as_str),
-                inference: metadata.get(key::INFERENCE).map(String::as_str),
-                optimizer: optimizer.as_deref(),
-            });
-            if computed != stored {
-                return Err(FormatProblem::StateChecksum { stored, computed });
-            }
+        let checksum = (format != FORMAT_UNCHECKED).then(|| get(key::CHECKSUM)).transpose()?;
+        let state_checked = format == FORMAT;
+        if state_checked {
+            get(key::STATE)?;
         }
         Ok(Self {
             stage,
             model_config,
-            model,
-            optimizer,
-            training: metadata.get(key::TRAINING).cloned(),
             inference,
+            training: metadata.get(key::TRAINING).cloned(),
+            checksum,
+            state_checked,
+            metadata,
+            reader,
+            name: name.to_path_buf(),
         })
     }
 
     /// Fails unless the checkpoint holds `stage`.
-    pub fn expect_stage(&self, stage: Stage, path: &Path) -> Result<(), CheckpointError> {
+    pub fn expect_stage(&self, stage: Stage) -> Result<(), CheckpointError> {
         if self.stage == stage {
             Ok(())
         } else {
             Err(CheckpointError::WrongStage {
-                path: path.to_path_buf(),
+                path: self.name.clone(),
                 expected: stage.name(),
                 found: self.stage.name(),
             })
         }
     }
 
-    /// Applies the stored weights to `model`, in f32.
-    pub fn apply<M: Module>(&self, model: M, path: &Path) -> Result<M, CheckpointError> {
-        let mismatch = |source: RecordError| CheckpointError::Mismatch {
-            path: path.to_path_buf(),
-            problem: source.into(),
-        };
-        // In f32, the dtype every model here computes in, loaded as stored: casting to each
-        // parameter's own dtype instead reads its current value, which draws the random
-        // initialization of every weight only to replace it (a fifth of `infer`'s instructions
-        // on one photo).
-        let weights = convert(&self.model, DType::F32)
-            .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
-        let record = ModuleRecord::from_bytes(weights).map_err(mismatch)?;
-        model.try_load_record(record).map_err(mismatch)
+    /// `model` with the stored weights, in f32: the tensors are read once, verified against
+    /// their checksums and for non-finite values on the way, and converted once.
+    pub fn build<M: Module>(self, model: M) -> Result<M, CheckpointError> {
+        let name = self.name.clone();
+        let format = |problem: FormatProblem| CheckpointError::Format { path: name.clone(), problem };
+        let (weights, _) = self.tensors().map_err(format)?;
+        let weights = weights.into_iter().map(|entry| entry.in_dtype(DType::F32)).collect();
+        let weights = pack(weights).map_err(|source| format(source.into()))?;
+        load_record(model, weights, &name)
+    }
+
+    /// The whole checkpoint, as training reads it to resume.
+    fn into_checkpoint(self) -> Result<Checkpoint, CheckpointError> {
+        let name = self.name.clone();
+        let format = |problem: FormatProblem| CheckpointError::Format { path: name.clone(), problem };
+        let (stage, model_config, training, inference) =
+            (self.stage, self.model_config.clone(), self.training.clone(), self.inference);
+        let (weights, optimizer) = self.tensors().map_err(format)?;
+        let model = pack(weights).map_err(|source| format(source.into()))?;
+        Ok(Checkpoint { stage, model_config, model, optimizer, training, inference })
+    }
+
+    /// The model's tensors and the optimizer's bytes, verified against the stored checksums
+    /// (every byte a run reads back) and the weights for non-finite values.
+    fn tensors(self) -> Result<(Vec<Entry>, Option<Bytes>), FormatProblem> {
+        let (model, optimizer) = split(self.reader.into_tensors()?, self.checksum.as_deref())?;
+        if self.state_checked {
+            let stored = self.metadata.get(key::STATE).cloned().unwrap_or_default();
+            let computed = state_checksum(State {
+                stage: self.stage.name(),
+                model: self.metadata.get(key::MODEL).map_or("", String::as_str),
+                training: self.metadata.get(key::TRAINING).map(String::as_str),
+                inference: self.metadata.get(key::INFERENCE).map(String::as_str),
+                optimizer: optimizer.as_deref(),
+            });
+            if computed != stored {
+                return Err(FormatProblem::StateChecksum { stored, computed });
+            }
+        }
+        Ok((model, optimizer))
     }
 }
 
 /// Loads a coarse model and its configuration from a checkpoint file.
 pub fn load_coarse(path: &Path, device: &Device) -> Result<(CoarseModel, ModelConfig), CheckpointError> {
-    let checkpoint = Checkpoint::load(path)?;
-    checkpoint.expect_stage(Stage::Coarse, path)?;
-    let model = checkpoint.apply(CoarseModel::new(&checkpoint.model_config, device), path)?;
-    Ok((model, checkpoint.model_config))
+    let opened = Checkpoint::open(path)?;
+    opened.expect_stage(Stage::Coarse)?;
+    let config = opened.model_config.clone();
+    Ok((opened.build(CoarseModel::new(&config, device))?, config))
 }
 
 /// Loads a refinement model and its configuration from a checkpoint file.
 pub fn load_refine(path: &Path, device: &Device) -> Result<(RefineModel, ModelConfig), CheckpointError> {
-    let checkpoint = Checkpoint::load(path)?;
-    checkpoint.expect_stage(Stage::Refine, path)?;
-    let model = checkpoint.apply(RefineModel::new(&checkpoint.model_config, device), path)?;
-    Ok((model, checkpoint.model_config))
+    let opened = Checkpoint::open(path)?;
+    opened.expect_stage(Stage::Refine)?;
+    let config = opened.model_config.clone();
+    Ok((opened.build(RefineModel::new(&config, device))?, config))
 }
 
 /// One tensor of a burnpack container.
@@ -430,6 +513,12 @@ impl Entry {
     fn from_pack(tensor: burn_pack::Tensor) -> Result<Self, burn_pack::Error> {
         let (name, dtype, shape, id, bytes) = tensor.into_parts()?;
         Ok(Self { name, id, data: TensorData::from_bytes(bytes, shape, dtype) })
+    }
+
+    /// The entry with a float tensor stored in `dtype`.
+    fn in_dtype(self, dtype: DType) -> Self {
+        let data = if self.data.dtype().is_float() { self.data.convert_dtype(dtype) } else { self.data };
+        Self { data, ..self }
     }
 
     fn into_pack(self) -> burn_pack::Tensor {
@@ -451,15 +540,7 @@ fn pack(entries: Vec<Entry>) -> Result<Bytes, burn_pack::Error> {
 
 /// `bytes` (a burnpack buffer) with every float tensor stored in `dtype`.
 fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, burn_pack::Error> {
-    let entries = entries(bytes)?
-        .into_iter()
-        .map(|entry| {
-            let data =
-                if entry.data.dtype().is_float() { entry.data.convert_dtype(dtype) } else { entry.data };
-            Entry { data, ..entry }
-        })
-        .collect();
-    pack(entries)
+    pack(entries(bytes)?.into_iter().map(|entry| entry.in_dtype(dtype)).collect())
 }
 
 /// FNV-1a, 64 bits: what a flipped bit anywhere in what it is fed changes.
@@ -544,12 +625,13 @@ fn is_finite(data: &TensorData) -> bool {
     }
 }
 
-/// Splits a checkpoint's tensors back into the model and optimizer burnpack buffers, checking the
-/// model's against `stored` (its checksum, when the format has one) and for non-finite values.
+/// Splits a checkpoint's tensors back into the model's and the optimizer's burnpack buffer,
+/// checking the model's against `stored` (its checksum, when the format has one) and for
+/// non-finite values.
 fn split(
     tensors: Vec<burn_pack::Tensor>,
     stored: Option<&str>,
-) -> Result<(Bytes, Option<Bytes>), FormatProblem> {
+) -> Result<(Vec<Entry>, Option<Bytes>), FormatProblem> {
     let (mut model, mut optimizer) = (Vec::new(), None);
     for tensor in tensors {
         let entry = Entry::from_pack(tensor)?;
@@ -573,5 +655,5 @@ fn split(
     if let Some(entry) = model.iter().find(|e| !is_finite(&e.data)) {
         return Err(FormatProblem::NonFinite(entry.name.clone()));
     }
-    Ok((pack(model)?, optimizer))
+    Ok((model, optimizer))
 }

@@ -19,7 +19,7 @@ mod refine;
 mod vit;
 
 pub use checkpoint::{
-    Checkpoint, CheckpointError, FormatProblem, MismatchProblem, Stage, load_coarse, load_refine,
+    Checkpoint, CheckpointError, FormatProblem, MismatchProblem, Opened, Stage, load_coarse, load_refine,
 };
 pub use coarse::CoarseModel;
 pub use config::{InputSpec, InvalidSetting, ModelConfig, Preset, RefineAnchor};
