@@ -20,8 +20,8 @@ use infer::{AutoRule, FinetuneOptions, Job, Limit, Models, PathBudget};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
-/// The built-in E_c and E_r on the CPU, loaded by the first call (about a second), or why they
-/// could not be.
+/// The built-in E_c and E_r on the CPU, opened by the first call (each network's weights are
+/// read when a job first uses it), or why they could not be.
 fn models() -> PyResult<&'static (Models, Device)> {
     static MODELS: OnceLock<Result<(Models, Device), String>> = OnceLock::new();
     let loaded = MODELS.get_or_init(|| {

@@ -40,8 +40,8 @@ fn shell_quoted(arg: &str) -> String {
     }
 }
 
-/// Both models, from the given checkpoints or the bundled ones ([`Models::identities`] says
-/// which).
+/// Both models, from the given checkpoints or the bundled ones (each network's
+/// [`infer::Identity`] says which).
 pub fn load_models(
     coarse: Option<&Path>,
     refine: Option<&Path>,

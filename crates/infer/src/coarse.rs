@@ -5,13 +5,13 @@
 
 use std::time::Instant;
 
-use model::{CoarseModel, CropBatch, crop_to_image};
+use model::{CheckpointError, CoarseModel, CropBatch, crop_to_image};
 use raster::Path;
 use superpixel::{RegionCrop, worst_first};
 
 use crate::budget::{CoarseShare, Prices};
 use crate::fallback::FallbackDrawing;
-use crate::models::Context;
+use crate::models::{Context, Network};
 use crate::scene::{Scene, Tried, paint_with, region_errors};
 
 /// Draws `scene` (which must be empty) from `fallback`, the fallback drawing of its
@@ -38,17 +38,18 @@ use crate::scene::{Scene, Tried, paint_with, region_errors};
 /// beats the fallback drawing of the full segmentation.
 ///
 /// Returns the seconds E_c's forward passes took (cropping its regions and reading out its
-/// paths included).
+/// paths included). E_c is read ([`Network::get`]) only when it has regions to draw; an error
+/// reading it is the only error.
 ///
 /// # Panics
 /// If the scene already holds paths.
 pub fn draw_coarse(
-    coarse: &CoarseModel,
+    coarse: &Network<CoarseModel>,
     context: &Context,
     scene: &mut Scene,
     fallback: FallbackDrawing,
     share: CoarseShare,
-) -> f64 {
+) -> Result<f64, CheckpointError> {
     assert!(scene.is_empty(), "the coarse stage starts the drawing");
     let (target, segmentation) = (scene.target().clone(), scene.segmentation().clone());
     let spare = share.paths.min(share.total.saturating_sub(1 + fallback.order.len()));
@@ -58,8 +59,9 @@ pub fn draw_coarse(
     };
     if wanted == 0 {
         *scene = fallback.into_scene(&target, &segmentation);
-        return 0.0;
+        return Ok(0.0);
     }
+    let coarse = coarse.get()?;
     let chosen = worst_regions(scene, &fallback, wanted);
     let regions = segmentation.regions.len();
     let mut network = 0.0;
@@ -83,7 +85,7 @@ pub fn draw_coarse(
         kept.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         keep_best(scene, &kept, spare);
         settle(scene, alone, error);
-        return network;
+        return Ok(network);
     };
     let most = regions.saturating_sub(market.hierarchy.fewest_regions());
     let mut prices = Prices::measured(&target, &segmentation, market, most, (error, alone.len()));
@@ -107,7 +109,7 @@ pub fn draw_coarse(
     };
     if bought == 0 || merges == 0 {
         *scene = alone;
-        return network;
+        return Ok(network);
     }
     let mut bought: Vec<(usize, &Tried)> =
         kept[..bought].iter().map(|tried| (tried.position(scene), tried)).collect();
@@ -120,7 +122,7 @@ pub fn draw_coarse(
     drawn.sort_by(|a, b| b.gain.total_cmp(&a.gain));
     keep_best(scene, &drawn, drawn.len().saturating_sub(scene.len().saturating_sub(share.total)));
     settle(scene, alone, error);
-    network
+    Ok(network)
 }
 
 /// `scene` with E_c's paths, painted again in one pass (its boxes were painted in windows), or

@@ -4,7 +4,7 @@
 //! Every front end (the `infer` program, `eval`, `tune`, Python) builds a [`Job`] and reports
 //! [`InvalidJob`] in its own words; none checks a value itself.
 
-use model::OperatingPoint;
+use model::{CheckpointError, OperatingPoint};
 use raster::{MAX_DECIMALS, SvgError, SvgOptions};
 use serde::Serialize;
 use superpixel::SlicError;
@@ -388,7 +388,7 @@ impl InvalidJob {
 }
 
 /// Why an image could not be vectorized.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, thiserror::Error)]
 pub enum VectorizeError {
     /// The job breaks a limit ([`Job::validate`]).
     #[error(transparent)]
@@ -399,6 +399,9 @@ pub enum VectorizeError {
     /// The drawing could not be written as SVG.
     #[error(transparent)]
     Svg(#[from] SvgError),
+    /// A network's weights could not be read when a stage first used them.
+    #[error(transparent)]
+    Model(#[from] CheckpointError),
 }
 
 /// Something a job did differently from what it was asked, said to the user.

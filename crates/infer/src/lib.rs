@@ -40,7 +40,7 @@ pub use job::{
 };
 pub use models::{
     BUILT_IN_COARSE, BUILT_IN_REFINE, BuiltIn, Context, Identity, MODELS_ENV, ModelSource, Models,
-    ModelsError, bundled,
+    ModelsError, Network, bundled,
 };
 pub use pipeline::{Outcome, Report, Seconds, run, run_with_progress};
 pub use refine::RefineTally;

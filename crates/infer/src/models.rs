@@ -1,11 +1,13 @@
 //! The two networks inference runs, and where the bundled ones are found.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
+use burn::module::Module;
 use burn::tensor::Device;
 use model::{
-    Checkpoint, CheckpointError, CoarseModel, MismatchProblem, ModelConfig, OperatingPoint, RefineModel,
-    Stage,
+    Checkpoint, CheckpointError, CoarseModel, MismatchProblem, ModelConfig, Opened, OperatingPoint,
+    RefineModel, Stage,
 };
 
 /// Where a checkpoint is read from: a file, or the copy of a bundled model built into this
@@ -38,11 +40,11 @@ pub static BUILT_IN_REFINE: BuiltIn =
     BuiltIn { name: "refine.ckpt", bytes: include_bytes!("../../../models/refine.ckpt") };
 
 impl ModelSource {
-    /// The checkpoint it holds.
-    pub fn load(&self) -> Result<Checkpoint, CheckpointError> {
+    /// The checkpoint it holds, opened: its header read and checked, its weights not yet.
+    pub fn open(&self) -> Result<Opened, CheckpointError> {
         match self {
-            Self::File(path) => Checkpoint::load(path),
-            Self::BuiltIn(built_in) => Checkpoint::from_bytes(built_in.bytes, &self.name()),
+            Self::File(path) => Checkpoint::open(path),
+            Self::BuiltIn(built_in) => Checkpoint::open_bytes(built_in.bytes, &self.name()),
             Self::Memory(_) => Err(CheckpointError::Missing { path: self.name() }),
         }
     }
@@ -57,24 +59,18 @@ impl ModelSource {
     }
 }
 
-/// One loaded network's identity, for the line that says which models drew: where it came
-/// from, the checksum of its weights and how it was trained (the trainer's state: step,
-/// config).
+/// One network's identity, for the line that says which models drew: where it comes from,
+/// the checksum its weights are stored with and how it was trained (the trainer's state:
+/// step, config).
 #[derive(Clone, Debug)]
 pub struct Identity {
     /// Where it was read from.
     pub source: ModelSource,
-    /// [`Checkpoint::weights_checksum`].
+    /// [`Checkpoint::weights_checksum`] as stored, which the weights are verified against when
+    /// read ("unchecked" for the first format, which has none).
     pub checksum: String,
     /// The trainer's state stored with it, when there is one.
     pub training: Option<String>,
-}
-
-impl Identity {
-    /// The identity of networks the caller built in memory, named `name`.
-    pub fn in_memory(name: &'static str) -> Self {
-        Self { source: ModelSource::Memory(name), checksum: "-".into(), training: None }
-    }
 }
 
 impl std::fmt::Display for Identity {
@@ -97,24 +93,107 @@ fn training_summary(training: &str) -> Option<String> {
     })
 }
 
-/// The trained networks, ready for inference (cloning shares their weights).
+/// One network of inference: which it is, and its weights, read and verified the first time a
+/// stage asks for them ([`Network::get`]), so a job that never runs it never pays for reading
+/// it. Cloning shares the weights, read or not.
+#[derive(Clone)]
+pub struct Network<M> {
+    /// Which network this is.
+    pub identity: Identity,
+    weights: Arc<Weights<M>>,
+}
+
+/// A network's weights: built once, by the first caller that needs them.
+struct Weights<M> {
+    built: OnceLock<M>,
+    /// Held while the weights are read, so two threads asking at once read them once.
+    reading: Mutex<()>,
+    /// How to build the network from its checkpoint; none for one built in memory.
+    recipe: Option<Recipe<M>>,
+}
+
+/// What building a network from its checkpoint takes.
+struct Recipe<M> {
+    stage: Stage,
+    config: ModelConfig,
+    device: Device,
+    new: fn(&ModelConfig, &Device) -> M,
+}
+
+impl<M: Module> Network<M> {
+    /// A network to be read from `source` when first used: `opened` is that checkpoint's
+    /// header, already checked to hold `stage`; the network is built with `config` on `device`.
+    fn deferred(
+        source: &ModelSource,
+        opened: &Opened,
+        stage: Stage,
+        new: fn(&ModelConfig, &Device) -> M,
+        device: &Device,
+    ) -> Self {
+        let identity = Identity {
+            source: source.clone(),
+            checksum: opened.checksum.clone().unwrap_or_else(|| "unchecked".into()),
+            training: opened.training.clone(),
+        };
+        let recipe = Recipe { stage, config: opened.model_config.clone(), device: device.clone(), new };
+        Self {
+            identity,
+            weights: Arc::new(Weights {
+                built: OnceLock::new(),
+                reading: Mutex::new(()),
+                recipe: Some(recipe),
+            }),
+        }
+    }
+
+    /// A network the caller built in memory (a model in training, a test's), named `name`.
+    pub fn in_memory(model: M, name: &'static str) -> Self {
+        let built = OnceLock::from(model);
+        Self {
+            identity: Identity { source: ModelSource::Memory(name), checksum: "-".into(), training: None },
+            weights: Arc::new(Weights { built, reading: Mutex::new(()), recipe: None }),
+        }
+    }
+
+    /// The network, its weights read from its checkpoint and verified (checksum, finite
+    /// values, shapes) the first time it is asked for.
+    pub fn get(&self) -> Result<&M, CheckpointError> {
+        let weights = &*self.weights;
+        if let Some(model) = weights.built.get() {
+            return Ok(model);
+        }
+        let _reading = weights.reading.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(model) = weights.built.get() {
+            return Ok(model);
+        }
+        let source = &self.identity.source;
+        let Some(recipe) = &weights.recipe else {
+            return Err(CheckpointError::Missing { path: source.name() });
+        };
+        let opened = source.open()?;
+        opened.expect_stage(recipe.stage)?;
+        let model = opened.build((recipe.new)(&recipe.config, &recipe.device))?;
+        Ok(weights.built.get_or_init(|| model))
+    }
+}
+
+/// The trained networks inference runs, each read the first time a stage uses it (cloning
+/// shares them).
 #[derive(Clone)]
 pub struct Models {
     /// E_c.
-    pub coarse: CoarseModel,
+    pub coarse: Network<CoarseModel>,
     /// E_r; without it the result has only coarse paths.
-    pub refine: Option<RefineModel>,
+    pub refine: Option<Network<RefineModel>>,
     /// Their configuration (architecture and input contract).
     pub config: ModelConfig,
     /// How a path budget is split between regions, E_c and E_r: the one measured for these
     /// models and stored in the coarse checkpoint, or [`OperatingPoint::default`].
     pub operating_point: OperatingPoint,
-    /// Which E_c and E_r these are.
-    pub identities: (Identity, Option<Identity>),
 }
 
 impl Models {
-    /// Loads E_c from `coarse` and, if given, E_r from `refine` (both must share a configuration).
+    /// E_c from `coarse` and, if given, E_r from `refine` (both must share a configuration).
     pub fn load(coarse: &Path, refine: Option<&Path>, device: &Device) -> Result<Self, CheckpointError> {
         let refine = refine.map(|path| ModelSource::File(path.to_path_buf()));
         Self::from_sources(&ModelSource::File(coarse.to_path_buf()), refine.as_ref(), device)
@@ -127,48 +206,34 @@ impl Models {
         Ok(Self::from_sources(&coarse, refine.as_ref(), device)?)
     }
 
-    /// [`Models::load`] from files or built-in copies.
+    /// [`Models::load`] from files or built-in copies. What each checkpoint says about itself
+    /// (its stage, its configuration, the operating point) is read and checked now; the
+    /// weights when a stage first uses them ([`Network::get`]).
     pub fn from_sources(
         coarse: &ModelSource,
         refine: Option<&ModelSource>,
         device: &Device,
     ) -> Result<Self, CheckpointError> {
-        let checkpoint = coarse.load()?;
-        let coarse_name = coarse.name();
-        checkpoint.expect_stage(Stage::Coarse, &coarse_name)?;
-        let config = checkpoint.model_config.clone();
-        let operating_point = checkpoint.inference.unwrap_or_default();
-        let coarse_model = checkpoint.apply(CoarseModel::new(&config, device), &coarse_name)?;
-        let identity = |source: &ModelSource, checkpoint: &Checkpoint| Identity {
-            source: source.clone(),
-            checksum: checkpoint.weights_checksum(),
-            training: checkpoint.training.clone(),
-        };
-        let coarse_identity = identity(coarse, &checkpoint);
+        let opened = coarse.open()?;
+        opened.expect_stage(Stage::Coarse)?;
+        let config = opened.model_config.clone();
+        let operating_point = opened.inference.unwrap_or_default();
+        let coarse_network = Network::deferred(coarse, &opened, Stage::Coarse, CoarseModel::new, device);
         let refine = match refine {
             None => None,
             Some(source) => {
-                let checkpoint = source.load()?;
-                let name = source.name();
-                checkpoint.expect_stage(Stage::Refine, &name)?;
-                if !config.serves_refine(&checkpoint.model_config) {
+                let opened = source.open()?;
+                opened.expect_stage(Stage::Refine)?;
+                if !config.serves_refine(&opened.model_config) {
                     return Err(CheckpointError::Mismatch {
-                        path: name,
-                        problem: MismatchProblem::ConfigDiffers(coarse_name),
+                        path: source.name(),
+                        problem: MismatchProblem::ConfigDiffers(coarse.name()),
                     });
                 }
-                let model = checkpoint.apply(RefineModel::new(&checkpoint.model_config, device), &name)?;
-                Some((model, identity(source, &checkpoint)))
+                Some(Network::deferred(source, &opened, Stage::Refine, RefineModel::new, device))
             }
         };
-        let (refine, refine_identity) = refine.unzip();
-        Ok(Self {
-            coarse: coarse_model,
-            refine,
-            config,
-            operating_point,
-            identities: (coarse_identity, refine_identity),
-        })
+        Ok(Self { coarse: coarse_network, refine, config, operating_point })
     }
 }
 

@@ -15,10 +15,11 @@ use std::time::Instant;
 use image::Rgb32FImage;
 use model::{CropBatch, canvas_cells, crop_to_image};
 use raster::{Path, Shape};
-use superpixel::{RegionCrop, Segmentation, SlicError, SlicOptions, slic};
+use superpixel::{RegionCrop, Segmentation, SlicOptions, slic};
 
 use crate::coarse::propose;
 use crate::fallback::background;
+use crate::job::VectorizeError;
 use crate::models::{Context, Models};
 use crate::refine::RefineTally;
 use crate::scene::{Origin, Placed, Scene};
@@ -53,7 +54,7 @@ pub fn draw_paper(
     context: &Context,
     target: &Arc<Rgb32FImage>,
     paths: usize,
-) -> Result<(Scene, RefineTally, f64), SlicError> {
+) -> Result<(Scene, RefineTally, f64), VectorizeError> {
     let (width, height) = target.dimensions();
     let segmentation = Arc::new(slic(target, &coarse_slic(coarse_regions(paths, width, height)))?);
     let config = context.config;
@@ -63,7 +64,7 @@ pub fn draw_paper(
     let share = (paths - 1) / segmentation.regions.len();
     let mut drawn: Vec<Placed> = Vec::new();
     let clock = Instant::now();
-    let proposals = propose(&models.coarse, context, &crops, (width, height));
+    let proposals = propose(models.coarse.get()?, context, &crops, (width, height));
     let coarse_network = clock.elapsed().as_secs_f64();
     for (region, proposed) in proposals.into_iter().enumerate() {
         drawn.extend(proposed.into_iter().take(share).map(|path| Placed {
@@ -87,7 +88,7 @@ pub fn draw_paper(
             let second = slic(target, &refine_slic(regions))?;
             let before = scene.total_error();
             let clock = Instant::now();
-            let proposed = propose_refinement(context, refine, &scene, &second);
+            let proposed = propose_refinement(context, refine.get()?, &scene, &second);
             tally.network_seconds = clock.elapsed().as_secs_f64();
             tally.proposed = proposed.len();
             // Appended until the scene holds `paths` (a path that cannot be drawn is passed over).

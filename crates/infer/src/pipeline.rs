@@ -132,12 +132,12 @@ pub fn run_with_progress(
     let superpixels = started.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let coarse_network = draw_coarse(&models.coarse, &context, &mut scene, fallback, plan.coarse(market));
+    let coarse_network = draw_coarse(&models.coarse, &context, &mut scene, fallback, plan.coarse(market))?;
     let coarse = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
     let proposer = match job.refiner {
-        Refiner::Network => models.refine.as_ref().map(Proposer::Network),
+        Refiner::Network => models.refine.as_ref().map(|e_r| e_r.get().map(Proposer::Network)).transpose()?,
         Refiner::Optimizer { steps } => {
             Some(Proposer::Optimizer(PathOptimizer { paths: models.config.refine_paths, steps }))
         }

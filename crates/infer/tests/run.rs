@@ -5,7 +5,7 @@
 use burn::tensor::Device;
 use common::Loaded;
 use image::{Rgb, Rgb32FImage};
-use infer::{AutoRule, Identity, InvalidJob, Job, Models, PathBudget, Split, VectorizeError, run};
+use infer::{AutoRule, InvalidJob, Job, Models, Network, PathBudget, Split, VectorizeError, run};
 use model::OperatingPoint;
 
 mod support;
@@ -13,13 +13,19 @@ mod support;
 /// Tiny networks of a fixed seed, with or without E_r, at the default operating point.
 fn models(refine: bool) -> Models {
     let (config, coarse, e_r) = support::tiny_models(&Device::flex());
-    let identities = (Identity::in_memory("tiny E_c"), refine.then(|| Identity::in_memory("tiny E_r")));
     Models {
-        coarse,
-        refine: refine.then_some(e_r),
+        coarse: Network::in_memory(coarse, "tiny E_c"),
+        refine: refine.then(|| Network::in_memory(e_r, "tiny E_r")),
         config,
         operating_point: OperatingPoint::default(),
-        identities,
+    }
+}
+
+/// The job a run refused as invalid, if that is why it failed.
+fn invalid<T>(result: Result<T, VectorizeError>) -> Option<InvalidJob> {
+    match result {
+        Err(VectorizeError::Invalid(invalid)) => Some(invalid),
+        _ => None,
     }
 }
 
@@ -112,10 +118,7 @@ fn the_papers_inference_draws_without_fallbacks_within_the_budget() {
         Job { regions: Some(5), ..paper(40) },
         Job { paths: PathBudget::Auto(AutoRule::default()), ..paper(40) },
     ] {
-        assert_eq!(
-            run(&models, &image, &refused, &device).err(),
-            Some(VectorizeError::Invalid(InvalidJob::PaperNeedsCount))
-        );
+        assert_eq!(invalid(run(&models, &image, &refused, &device)), Some(InvalidJob::PaperNeedsCount));
     }
 }
 
@@ -158,22 +161,19 @@ fn an_automatic_budget_gives_flat_art_few_paths_and_takes_no_region_count() {
     // Two flat halves are drawn exactly by two regions: the first rung of the ladder.
     assert_eq!(outcome.report.budget, 8, "two flat halves got a budget of {}", outcome.report.budget);
     assert!(outcome.report.auto_budget && outcome.report.paths <= 8);
-    let refused = run(&models, &flat, &Job { regions: Some(5), ..auto }, &device).err();
-    assert_eq!(refused, Some(VectorizeError::Invalid(InvalidJob::RegionsWithAuto)));
+    let refused = invalid(run(&models, &flat, &Job { regions: Some(5), ..auto }, &device));
+    assert_eq!(refused, Some(InvalidJob::RegionsWithAuto));
 }
 
 #[test]
 fn budgets_and_region_counts_out_of_range_are_errors() {
     let (models, image, device) = (models(false), photo(), Device::flex());
     for paths in [0, 1, infer::MAX_PATHS + 1] {
-        assert_eq!(
-            run(&models, &image, &job(paths), &device).err(),
-            Some(VectorizeError::Invalid(InvalidJob::Budget(paths)))
-        );
+        assert_eq!(invalid(run(&models, &image, &job(paths), &device)), Some(InvalidJob::Budget(paths)));
     }
     for regions in [0, 40, 41] {
-        let err = run(&models, &image, &Job { regions: Some(regions), ..job(40) }, &device).err();
-        assert_eq!(err, Some(VectorizeError::Invalid(InvalidJob::Regions { regions, paths: 40 })));
+        let err = invalid(run(&models, &image, &Job { regions: Some(regions), ..job(40) }, &device));
+        assert_eq!(err, Some(InvalidJob::Regions { regions, paths: 40 }));
     }
     // More regions than the image has room for: drawn with fewer, and said.
     let tiny = Loaded::from_image(Rgb32FImage::from_pixel(8, 8, Rgb([0.3, 0.3, 0.3])));

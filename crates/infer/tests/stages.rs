@@ -36,7 +36,7 @@ fn images() -> Vec<Rgb32FImage> {
 fn no_stage_lowers_the_psnr() {
     let device = Device::flex();
     let models = Models::bundled(true, &device).unwrap();
-    let refine = models.refine.as_ref().unwrap();
+    let refine = models.refine.as_ref().unwrap().get().unwrap();
     let budget = 60;
     for image in images() {
         let image = Arc::new(image);
@@ -48,12 +48,13 @@ fn no_stage_lowers_the_psnr() {
         let drawing = FallbackDrawing::new(&image, &segmentation, None);
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
         let no_coarse = CoarseShare { paths: 0, total: 45, market: None };
-        draw_coarse(&models.coarse, &context(&models, &device), &mut fallback, drawing.clone(), no_coarse);
+        draw_coarse(&models.coarse, &context(&models, &device), &mut fallback, drawing.clone(), no_coarse)
+            .unwrap();
 
         // A budget of 3 E_c paths keeps (at most) the 3 that helped most: never more.
         let mut few = Scene::new(image.clone(), segmentation.clone());
         let three = CoarseShare { paths: 3, total: 45, market: None };
-        draw_coarse(&models.coarse, &context(&models, &device), &mut few, drawing.clone(), three);
+        draw_coarse(&models.coarse, &context(&models, &device), &mut few, drawing.clone(), three).unwrap();
         let few_coarse = few.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
         assert!((1..=3).contains(&few_coarse), "{few_coarse} E_c paths for a budget of 3");
         assert!(
@@ -65,7 +66,7 @@ fn no_stage_lowers_the_psnr() {
 
         let mut scene = Scene::new(image.clone(), segmentation);
         let coarse_budget = CoarseShare { paths: 24, total: 45, market: None };
-        draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, coarse_budget);
+        draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, coarse_budget).unwrap();
         let after_coarse = score(&scene);
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
         assert!(scene.len() <= 45);
@@ -106,7 +107,7 @@ fn blobs(seed: u64) -> Rgb32FImage {
 fn paths_bought_with_regions_draw_better_than_the_regions() {
     let device = Device::flex();
     let models = Models::bundled(true, &device).unwrap();
-    let refine = models.refine.as_ref().unwrap();
+    let refine = models.refine.as_ref().unwrap().get().unwrap();
     // Fine regions: on these pictures E_c buys a few paths at 161 paths and tens at 241.
     let total = 241;
     for pricing in [Pricing::Flat, Pricing::Drawn] {
@@ -128,7 +129,7 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
             let mut scene = Scene::new(image.clone(), segmentation);
             let market = Market { hierarchy: &hierarchy, tolerance: None, pricing };
             let budget = CoarseShare { paths: 48, total, market: Some(market) };
-            draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, budget);
+            draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, budget).unwrap();
             let drawn = psnr(&scene.canvas_image(), &image);
             let coarse = scene.paths().iter().filter(|p| p.origin == Origin::Coarse).count();
             assert!(
@@ -187,7 +188,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let models = Models::bundled(false, &device).unwrap();
     let drawing = FallbackDrawing::new(&image, &segmentation, None);
     let no_coarse = CoarseShare { paths: 0, total: regions + 1, market: None };
-    draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, no_coarse);
+    draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, no_coarse).unwrap();
     // Fine-tuning moves paths: a drawing of paths alone (the traced regions, each fitted with
     // one path, as fine-tuning itself starts from them) is what it must improve on.
     let size = image.dimensions();

@@ -17,7 +17,7 @@ use burn::tensor::Device;
 use common::Loaded;
 use image::Rgb32FImage;
 use infer::stages::{FallbackDrawing, Proposer, Segmented, draw_refinement, hierarchy, max_regions};
-use infer::{Context, Identity, Job, MAX_PATHS, Models, OPTIMIZER_STEPS, PathBudget, Scene, Split};
+use infer::{Context, Job, MAX_PATHS, Models, Network, OPTIMIZER_STEPS, PathBudget, Scene, Split};
 use model::{CoarseModel, ModelConfig, OperatingPoint, PathOptimizer, RefineModel};
 use serde::Serialize;
 
@@ -192,11 +192,10 @@ impl CoarseCheck {
     /// Draws every image with `model` (on `device`) as `infer` draws it without E_r.
     pub fn score(&self, model: &CoarseModel, device: &Device) -> CoarseScores {
         let models = Models {
-            coarse: model.clone(),
+            coarse: Network::in_memory(model.clone(), "the model in training"),
             refine: None,
             config: self.config.clone(),
             operating_point: self.point,
-            identities: (Identity::in_memory("the model in training"), None),
         };
         let mut scores = CoarseScores { bought: 0, psnr_b: 0.0, psnr_regions: 0.0 };
         for (image, budget, psnr_regions) in &self.images {

@@ -197,8 +197,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
     // The fallback and no-refine rows draw without E_r (for the fallback: a region that lowers
     // nothing is not drawn, and E_r would spend what it leaves), as `infer --no-refine` does.
-    let regions_only =
-        infer::Models { refine: None, identities: (models.identities.0.clone(), None), ..models.clone() };
+    let regions_only = infer::Models { refine: None, ..models.clone() };
     // The peers read the input's format from its extension: the scratch folder is made new,
     // so the fixed names inside it are safe.
     let scratch = create_temporary_folder(&std::env::temp_dir(), "supersvg-eval")

@@ -178,8 +178,8 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         args.dir.display(),
         images.len(),
         args.size,
-        models.identities.0,
-        models.identities.1.as_ref().map_or("none".to_string(), ToString::to_string),
+        models.coarse.identity,
+        models.refine.as_ref().map_or("none".to_string(), |refine| refine.identity.to_string()),
         command_line("tune", std::env::args().skip(1))
     );
     for paths in &args.paths {

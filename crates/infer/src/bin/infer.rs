@@ -215,10 +215,10 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
     plan.prepare()?;
     let jobs = plan.jobs;
     if !args.quiet {
-        let (coarse, refine) = &models.identities;
+        let (coarse, refine) = (&models.coarse.identity, &models.refine);
         let refine = match (refine, args.refiner) {
             (_, Refiner::Optimizer { steps }) => format!("the exact optimizer ({steps} steps a region)"),
-            (Some(refine), Refiner::Network) => refine.to_string(),
+            (Some(refine), Refiner::Network) => refine.identity.to_string(),
             (None, Refiner::Network) => "none".to_string(),
         };
         eprintln!("models: coarse {coarse}, refine {refine}");
