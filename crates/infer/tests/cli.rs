@@ -135,6 +135,31 @@ fn model_and_output_problems_are_reported() {
     assert!(text(&result.stderr).contains("no/such/folder/photo.svg"), "{}", text(&result.stderr));
 }
 
+/// A network's weights are read when a stage first uses it: a damaged E_c is refused, by name
+/// and before any SVG is written, by a job that runs it, and costs nothing to one that does not.
+#[test]
+fn damaged_weights_are_refused_when_the_network_is_used() {
+    let fixture = Fixture::new("damaged");
+    let coarse = fixture.path("coarse.ckpt");
+    let mut bytes = std::fs::read(&coarse).unwrap();
+    let last = bytes.len() - 3;
+    bytes[last] ^= 1;
+    std::fs::write(&coarse, bytes).unwrap();
+    let out = fixture.path("photo.svg");
+    let photo = fixture.path("photo.png");
+    let run = |point: &str| {
+        fixture.infer(&[photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--operating-point", point])
+    };
+    let used = run("0.5,0");
+    let stderr = text(&used.stderr);
+    assert_eq!(used.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("coarse.ckpt") && stderr.contains("the file is damaged"), "{stderr}");
+    assert!(!out.exists(), "a partial SVG was left");
+    let unused = run("0,0");
+    assert_eq!(unused.status.code(), Some(0), "{}", text(&unused.stderr));
+    assert!(out.is_file());
+}
+
 /// Runs `infer` with `args` (plus the fixture's models) and kills it after `seconds`.
 fn infer_within(fixture: &Fixture, args: &[String], seconds: u64) -> Output {
     let child = Command::new(INFER)
