@@ -137,13 +137,13 @@ pub fn run_with_progress(
 
     let clock = Instant::now();
     let proposer = match job.refiner {
-        Refiner::Network => models.refine.as_ref().map(|e_r| e_r.get().map(Proposer::Network)).transpose()?,
+        Refiner::Network => models.refine.as_ref().map(Proposer::Network),
         Refiner::Optimizer { steps } => {
             Some(Proposer::Optimizer(PathOptimizer { paths: models.config.refine_paths, steps }))
         }
     };
     let refinement = match proposer {
-        Some(proposer) => draw_refinement(&context, proposer, &mut scene, plan.paths, market),
+        Some(proposer) => draw_refinement(&context, proposer, &mut scene, plan.paths, market)?,
         None => RefineTally::default(),
     };
     let refine = clock.elapsed().as_secs_f64();

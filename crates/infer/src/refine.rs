@@ -5,13 +5,13 @@
 
 use std::time::Instant;
 
-use model::{CropBatch, PathOptimizer, RefineModel, canvas_cells, crop_to_image};
+use model::{CheckpointError, CropBatch, PathOptimizer, RefineModel, canvas_cells, crop_to_image};
 use raster::{Path, Shape};
 use serde::Serialize;
 use superpixel::{RegionCrop, worst_first};
 
 use crate::budget::{Market, Prices};
-use crate::models::Context;
+use crate::models::{Context, Network};
 use crate::scene::{Origin, Placed, Scene, Scope};
 
 /// What E_r did in a drawing: how many paths it proposed, how many lowered the error and were
@@ -35,8 +35,9 @@ pub struct RefineTally {
 /// Who proposes the refinement stage's paths for a region's crop.
 #[derive(Clone, Copy)]
 pub enum Proposer<'a> {
-    /// E_r: one forward pass over the (target, canvas) crops, the method's.
-    Network(&'a RefineModel),
+    /// E_r: one forward pass over the (target, canvas) crops, the method's. It is read
+    /// ([`Network::get`]) the first time a round has a region to propose for.
+    Network(&'a Network<RefineModel>),
     /// The exact optimizer in E_r's place ([`PathOptimizer`]): as many paths a crop as E_r
     /// proposes, seeded where the canvas errs most and moved against the image's box, unmasked.
     /// What gradient descent finds in E_r's role, for judging a trained E_r against
@@ -47,11 +48,17 @@ pub enum Proposer<'a> {
 impl Proposer<'_> {
     /// The paths proposed for each of `crops` (in each crop's unit square) over `scene`'s
     /// drawing.
-    fn propose(&self, context: &Context, scene: &Scene, crops: &[&RegionCrop]) -> Vec<Vec<Path>> {
+    fn propose(
+        &self,
+        context: &Context,
+        scene: &Scene,
+        crops: &[&RegionCrop],
+    ) -> Result<Vec<Vec<Path>>, CheckpointError> {
         let device = context.device;
         let canvas = canvas_cells(&scene.canvas_image(), crops.iter().copied(), device);
-        match self {
+        Ok(match self {
             Proposer::Network(refine) => {
+                let refine = refine.get()?;
                 let targets = CropBatch::new(crops.iter().copied(), device);
                 let canvas = targets.masked_canvas(canvas, &context.config.input);
                 refine.forward(targets.pixels, canvas).to_scenes()
@@ -60,7 +67,7 @@ impl Proposer<'_> {
                 let target = canvas_cells(scene.target(), crops.iter().copied(), device);
                 optimizer.place_batch(&canvas, &target)
             }
-        }
+        })
     }
 }
 
@@ -83,13 +90,15 @@ impl Proposer<'_> {
 /// needs merges the scene is drawn again on the coarser cut (fallback, E_c's paths, then as
 /// many of E_r's as it leaves room for on top, largest gain first, each recoloured and judged
 /// again), and kept only if it beats the drawing with the free paths alone.
+///
+/// Fails only where E_r's weights cannot be read, the first time a round proposes.
 pub fn draw_refinement(
     context: &Context,
     proposer: Proposer<'_>,
     scene: &mut Scene,
     budget: usize,
     market: Option<Market<'_>>,
-) -> RefineTally {
+) -> Result<RefineTally, CheckpointError> {
     match market {
         None => fill(context, proposer, scene, budget),
         Some(market) => trade(context, proposer, scene, budget, market),
@@ -97,17 +106,22 @@ pub fn draw_refinement(
 }
 
 /// [`draw_refinement`] without a market: E_r fills what the budget leaves.
-fn fill(context: &Context, proposer: Proposer<'_>, scene: &mut Scene, budget: usize) -> RefineTally {
+fn fill(
+    context: &Context,
+    proposer: Proposer<'_>,
+    scene: &mut Scene,
+    budget: usize,
+) -> Result<RefineTally, CheckpointError> {
     let before = scene.total_error();
     let mut rounds = Rounds::new(scene);
     let refine_paths = context.config.refine_paths;
     while scene.len() < budget {
         let regions = (budget - scene.len()).div_ceil(refine_paths).min(context.batch.max(1));
-        if rounds.next(context, proposer, scene, regions, budget) == 0 {
+        if rounds.next(context, proposer, scene, regions, budget)? == 0 {
             break;
         }
     }
-    rounds.tally(scene, before)
+    Ok(rounds.tally(scene, before))
 }
 
 /// [`draw_refinement`] with E_r's paths bought through `market`.
@@ -117,7 +131,7 @@ fn trade(
     scene: &mut Scene,
     budget: usize,
     market: Market<'_>,
-) -> RefineTally {
+) -> Result<RefineTally, CheckpointError> {
     let before = scene.total_error();
     let start = scene.len();
     let free = budget.saturating_sub(start);
@@ -141,7 +155,7 @@ fn trade(
     let batch = context.batch.max(1);
     let mut count = free.div_ceil(context.config.refine_paths).max(FIRST_PROBE).min(batch);
     loop {
-        let asked = rounds.next(context, proposer, scene, count, start + free + most_merges);
+        let asked = rounds.next(context, proposer, scene, count, start + free + most_merges)?;
         count = (2 * count).min(batch);
         let kept = rounds.gains.len();
         if asked == 0 || kept == free + most_merges {
@@ -188,7 +202,7 @@ fn trade(
     {
         *scene = merged;
     }
-    rounds.tally(scene, before)
+    Ok(rounds.tally(scene, before))
 }
 
 /// How many regions E_r's trade asks about first when no free path needs more: where it buys
@@ -235,9 +249,9 @@ impl Rounds {
         scene: &mut Scene,
         count: usize,
         limit: usize,
-    ) -> usize {
+    ) -> Result<usize, CheckpointError> {
         if scene.len() >= limit {
-            return 0;
+            return Ok(0);
         }
         let errors = scene.region_errors();
         let mut worst: Vec<u32> = (0..errors.len() as u32)
@@ -255,16 +269,16 @@ impl Rounds {
             worst.iter().map(|&r| self.crops[r as usize].as_ref().expect("cut above")).collect();
         if chosen.is_empty() {
             self.network += clock.elapsed().as_secs_f64();
-            return 0;
+            return Ok(0);
         }
         let (width, height) = scene.target().dimensions();
-        let proposals = proposer.propose(context, scene, &chosen);
+        let proposals = proposer.propose(context, scene, &chosen)?;
         self.network += clock.elapsed().as_secs_f64();
         for ((&region, crop), paths) in worst.iter().zip(&chosen).zip(proposals) {
             let mut kept = 0;
             for path in paths {
                 if scene.len() >= limit {
-                    return worst.len();
+                    return Ok(worst.len());
                 }
                 self.proposed += 1;
                 let path = crop_to_image(path, crop, width, height);
@@ -277,7 +291,7 @@ impl Rounds {
             }
             self.exhausted[region as usize] |= kept == 0;
         }
-        worst.len()
+        Ok(worst.len())
     }
 
     /// Indices into [`Rounds::gains`], largest gain first.

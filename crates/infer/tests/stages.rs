@@ -36,7 +36,7 @@ fn images() -> Vec<Rgb32FImage> {
 fn no_stage_lowers_the_psnr() {
     let device = Device::flex();
     let models = Models::bundled(true, &device).unwrap();
-    let refine = models.refine.as_ref().unwrap().get().unwrap();
+    let refine = models.refine.as_ref().unwrap();
     let budget = 60;
     for image in images() {
         let image = Arc::new(image);
@@ -71,7 +71,8 @@ fn no_stage_lowers_the_psnr() {
         assert!(after_coarse >= score(&fallback), "coarse {after_coarse} < fallback {}", score(&fallback));
         assert!(scene.len() <= 45);
 
-        draw_refinement(&context(&models, &device), Proposer::Network(refine), &mut scene, budget, None);
+        draw_refinement(&context(&models, &device), Proposer::Network(refine), &mut scene, budget, None)
+            .unwrap();
         let after_refine = score(&scene);
         assert!(after_refine >= after_coarse, "refinement {after_refine} < coarse {after_coarse}");
         assert!(scene.len() <= budget);
@@ -107,7 +108,7 @@ fn blobs(seed: u64) -> Rgb32FImage {
 fn paths_bought_with_regions_draw_better_than_the_regions() {
     let device = Device::flex();
     let models = Models::bundled(true, &device).unwrap();
-    let refine = models.refine.as_ref().unwrap().get().unwrap();
+    let refine = models.refine.as_ref().unwrap();
     // Fine regions: on these pictures E_c buys a few paths at 161 paths and tens at 241.
     let total = 241;
     for pricing in [Pricing::Flat, Pricing::Drawn] {
@@ -152,7 +153,8 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
 
             let (before, regions, free) = (drawn, scene.segmentation().regions.len(), total - scene.len());
             let context = context(&models, &device);
-            let tally = draw_refinement(&context, Proposer::Network(refine), &mut scene, total, Some(market));
+            let tally = draw_refinement(&context, Proposer::Network(refine), &mut scene, total, Some(market))
+                .unwrap();
             let after = psnr(&scene.canvas_image(), &image);
             let refined = scene.counts().refine;
             assert!(

@@ -106,6 +106,7 @@ impl RefineCheck {
             let context = Context { config: model, batch: BATCH, device: &Device::flex() };
             let optimizer_db =
                 draw_refinement(&context, Proposer::Optimizer(optimizer), &mut scene.clone(), budget, None)
+                    .expect("the optimizer reads no checkpoint")
                     .gain_db;
             cases.push(Case { scene, extra, regions_db, optimizer_db });
         }
@@ -116,11 +117,13 @@ impl RefineCheck {
     pub fn score(&self, model: &RefineModel, device: &Device) -> RefineScores {
         let mut scores =
             RefineScores { proposed: 0, kept: 0, gain_db: 0.0, regions_db: 0.0, optimizer_db: 0.0 };
+        let model = Network::in_memory(model.clone(), "the model in training");
         for case in &self.cases {
             let mut scene = case.scene.clone();
             let budget = scene.len() + case.extra;
             let context = Context { config: &self.config, batch: BATCH, device };
-            let tally = draw_refinement(&context, Proposer::Network(model), &mut scene, budget, None);
+            let tally = draw_refinement(&context, Proposer::Network(&model), &mut scene, budget, None)
+                .expect("a network built in memory has no checkpoint to read");
             scores.proposed += tally.proposed;
             scores.kept += tally.kept;
             scores.gain_db += tally.gain_db;
