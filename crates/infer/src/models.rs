@@ -31,13 +31,25 @@ pub struct BuiltIn {
     pub bytes: &'static [u8],
 }
 
+/// A file's bytes compiled into the program on a 256-byte boundary, as burnpack aligns the
+/// tensors inside a file: so that the checkpoint is read where it lies
+/// ([`Checkpoint::open_bytes`]), not copied.
+macro_rules! include_aligned {
+    ($path:literal) => {{
+        #[repr(C, align(256))]
+        struct Aligned<B: ?Sized>(B);
+        const ALIGNED: &Aligned<[u8]> = &Aligned(*include_bytes!($path));
+        &ALIGNED.0
+    }};
+}
+
 /// The bundled E_c, `models/coarse.ckpt` as it was when this program was built.
 pub static BUILT_IN_COARSE: BuiltIn =
-    BuiltIn { name: "coarse.ckpt", bytes: include_bytes!("../../../models/coarse.ckpt") };
+    BuiltIn { name: "coarse.ckpt", bytes: include_aligned!("../../../models/coarse.ckpt") };
 
 /// The bundled E_r, `models/refine.ckpt` as it was when this program was built.
 pub static BUILT_IN_REFINE: BuiltIn =
-    BuiltIn { name: "refine.ckpt", bytes: include_bytes!("../../../models/refine.ckpt") };
+    BuiltIn { name: "refine.ckpt", bytes: include_aligned!("../../../models/refine.ckpt") };
 
 impl ModelSource {
     /// The checkpoint it holds, opened: its header read and checked, its weights not yet.

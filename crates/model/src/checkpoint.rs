@@ -15,12 +15,17 @@
 //! Writes are atomic (`common::write::write_atomic`), so an interrupted save never leaves a
 //! partial checkpoint.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use burn::module::Module;
-use burn::store::{ModuleRecord, RecordError};
-use burn::tensor::{Bytes, DType, Device, TensorData};
+use burn::module::{Module, ModuleMapper, Param, ParamId};
+use burn::store::RecordError;
+use burn::tensor::kind::Basic;
+use burn::tensor::{AllocationProperty, Bool, Bytes, DType, Device, Float, Int, Shape, Tensor, TensorData};
 use burn_pack::{Reader, Writer};
+use half::f16;
+use half::slice::HalfFloatSliceExt;
+use rayon::prelude::*;
 
 use crate::coarse::CoarseModel;
 use crate::config::{InvalidSetting, ModelConfig};
@@ -215,7 +220,7 @@ pub struct Checkpoint {
     pub stage: Stage,
     /// The network's configuration.
     pub model_config: ModelConfig,
-    /// The weights, as burnpack bytes of a [`ModuleRecord`].
+    /// The weights, as burnpack bytes of a [`burn::store::ModuleRecord`].
     pub model: Bytes,
     /// The optimizer state, as burnpack bytes, when the checkpoint is for resuming training.
     pub optimizer: Option<Bytes>,
@@ -299,12 +304,6 @@ impl Checkpoint {
         Self::open(path)?.into_checkpoint()
     }
 
-    /// Reads a checkpoint held in memory (one built into a program); `name` stands for it in
-    /// errors, as a path does for a file.
-    pub fn from_bytes(bytes: &[u8], name: &Path) -> Result<Self, CheckpointError> {
-        Self::open_bytes(bytes, name)?.into_checkpoint()
-    }
-
     /// Opens the checkpoint at `path`: what it says about itself, read and checked now, and
     /// its weights, read when a network is built from them ([`Opened::build`]).
     pub fn open(path: &Path) -> Result<Opened, CheckpointError> {
@@ -320,9 +319,18 @@ impl Checkpoint {
             .map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
     }
 
-    /// [`Checkpoint::open`] of a checkpoint held in memory; `name` stands for it in errors.
-    pub fn open_bytes(bytes: &[u8], name: &Path) -> Result<Opened, CheckpointError> {
-        Reader::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
+    /// [`Checkpoint::open`] of a checkpoint built into the program, read where it lies (not
+    /// copied: a program that never builds the network never touches its weights); `name`
+    /// stands for it in errors.
+    /// The bytes must start on a [`burn_pack::TENSOR_ALIGNMENT`] boundary to be read in place
+    /// (tensors are read as slices of f16 or f32); others are copied first.
+    pub fn open_bytes(bytes: &'static [u8], name: &Path) -> Result<Opened, CheckpointError> {
+        let bytes = if (bytes.as_ptr() as usize).is_multiple_of(burn_pack::TENSOR_ALIGNMENT as usize) {
+            Bytes::from_shared(bytes::Bytes::from_static(bytes), AllocationProperty::Other)
+        } else {
+            Bytes::from_bytes_vec(bytes.to_vec())
+        };
+        Reader::from_bytes(bytes)
             .map_err(FormatProblem::from)
             .and_then(|reader| Opened::new(reader, name))
             .map_err(|problem| CheckpointError::Format { path: name.to_path_buf(), problem })
@@ -350,21 +358,91 @@ impl Checkpoint {
 
     /// Applies the stored weights to `model`, in f32.
     pub fn apply<M: Module>(&self, model: M, path: &Path) -> Result<M, CheckpointError> {
-        let weights = convert(&self.model, DType::F32)
+        let weights = entries(&self.model)
             .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
-        load_record(model, weights, path)
+        apply(model, weights, path)
     }
 }
 
-/// `model` with the weights of `record` (a burnpack buffer of f32 tensors). In f32, the dtype
-/// every model here computes in, loaded as stored: casting to each parameter's own dtype
-/// instead reads its current value, which draws the random initialization of every weight
-/// only to replace it.
-fn load_record<M: Module>(model: M, record: Bytes, path: &Path) -> Result<M, CheckpointError> {
-    let mismatch =
-        |source: RecordError| CheckpointError::Mismatch { path: path.to_path_buf(), problem: source.into() };
-    let record = ModuleRecord::from_bytes(record).map_err(mismatch)?;
-    model.try_load_record(record).map_err(mismatch)
+/// `model` with `weights` (tensors named by module path), each becoming an f32 tensor as it is
+/// placed: the one conversion of a weight stored in f16, straight from the bytes it was read
+/// in, with no record built in between. In f32, the dtype every model here computes in: a
+/// parameter's own dtype is not asked, which would draw its random initialization only to
+/// replace it. Every parameter must get a weight of its shape, and every weight a parameter.
+fn apply<M: Module>(model: M, weights: Vec<Entry>, path: &Path) -> Result<M, CheckpointError> {
+    let weights = weights.into_iter().map(|entry| (entry.name, (entry.id, entry.data))).collect();
+    let mut placing = Placing { path: Vec::new(), weights, problems: Vec::new() };
+    let model = model.map(&mut placing);
+    let mut unused: Vec<&String> = placing.weights.keys().collect();
+    unused.sort_unstable();
+    placing.problems.extend(unused.into_iter().map(|name| format!("{name}: no parameter of the model")));
+    match placing.problems.is_empty() {
+        true => Ok(model),
+        false => Err(CheckpointError::Mismatch {
+            path: path.to_path_buf(),
+            problem: RecordError::Validation(placing.problems.join("; ")).into(),
+        }),
+    }
+}
+
+/// The walk over a model's parameters that places its stored weights ([`apply`]).
+struct Placing {
+    /// The module path where the walk is.
+    path: Vec<String>,
+    /// The weights not yet placed, by module path: their parameter ids and data.
+    weights: HashMap<String, (Option<u64>, TensorData)>,
+    /// What did not fit, in the words errors use.
+    problems: Vec<String>,
+}
+
+impl Placing {
+    /// The weight for the parameter here, as a tensor of `shape` on `device`, and its id;
+    /// none (and a problem noted) when it is missing or of another shape.
+    fn take<const D: usize, K: Basic>(
+        &mut self,
+        shape: Shape,
+        device: &Device,
+    ) -> Option<(Tensor<D, K>, ParamId)> {
+        let path = self.path.join(".");
+        let Some((id, data)) = self.weights.remove(&path) else {
+            self.problems.push(format!("{path}: no weight stored"));
+            return None;
+        };
+        if *data.shape() != shape {
+            self.problems.push(format!("{path}: stored {:?}, the model has {shape:?}", data.shape()));
+            return None;
+        }
+        let dtype = if data.dtype().is_float() { DType::F32 } else { data.dtype() };
+        let id = id.map_or_else(ParamId::new, ParamId::from);
+        Some((Tensor::from_data(data, (device, dtype)), id))
+    }
+}
+
+/// One `ModuleMapper` method: the parameter with its weight placed, or as it was.
+macro_rules! place {
+    ($method:ident, $kind:ty) => {
+        fn $method<const D: usize>(&mut self, param: Param<Tensor<D, $kind>>) -> Param<Tensor<D, $kind>> {
+            let (shape, device) = (param.lazy_shape(), param.lazy_device());
+            match self.take(shape, &device) {
+                Some((tensor, id)) => param.transform_for_load(tensor, id),
+                None => param,
+            }
+        }
+    };
+}
+
+impl ModuleMapper for Placing {
+    fn enter_module(&mut self, name: &str, _container_type: &str) {
+        self.path.push(name.to_string());
+    }
+
+    fn exit_module(&mut self, _name: &str, _container_type: &str) {
+        self.path.pop();
+    }
+
+    place!(map_float, Float);
+    place!(map_int, Int);
+    place!(map_bool, Bool);
 }
 
 /// A checkpoint opened ([`Checkpoint::open`]): what it says about itself, read and checked
@@ -443,15 +521,15 @@ impl Opened {
         }
     }
 
-    /// `model` with the stored weights, in f32: the tensors are read once, verified against
-    /// their checksums and for non-finite values on the way, and converted once.
+    /// `model` with the stored weights, in f32: the tensors are read once and converted once,
+    /// while (on another core, where there is one) they are verified against their checksums
+    /// and for non-finite values; the model is built only from verified weights.
     pub fn build<M: Module>(self, model: M) -> Result<M, CheckpointError> {
         let name = self.name.clone();
         let format = |problem: FormatProblem| CheckpointError::Format { path: name.clone(), problem };
-        let (weights, _) = self.tensors().map_err(format)?;
-        let weights = weights.into_iter().map(|entry| entry.in_dtype(DType::F32)).collect();
-        let weights = pack(weights).map_err(|source| format(source.into()))?;
-        load_record(model, weights, &name)
+        let (_, _, weights) =
+            self.tensors_with(|stored| stored.par_iter().map(Entry::to_f32).collect()).map_err(format)?;
+        apply(model, weights, &name)
     }
 
     /// The whole checkpoint, as training reads it to resume.
@@ -460,15 +538,21 @@ impl Opened {
         let format = |problem: FormatProblem| CheckpointError::Format { path: name.clone(), problem };
         let (stage, model_config, training, inference) =
             (self.stage, self.model_config.clone(), self.training.clone(), self.inference);
-        let (weights, optimizer) = self.tensors().map_err(format)?;
+        let (weights, optimizer, ()) = self.tensors_with(|_| ()).map_err(format)?;
         let model = pack(weights).map_err(|source| format(source.into()))?;
         Ok(Checkpoint { stage, model_config, model, optimizer, training, inference })
     }
 
     /// The model's tensors and the optimizer's bytes, verified against the stored checksums
-    /// (every byte a run reads back) and the weights for non-finite values.
-    fn tensors(self) -> Result<(Vec<Entry>, Option<Bytes>), FormatProblem> {
-        let (model, optimizer) = split(self.reader.into_tensors()?, self.checksum.as_deref())?;
+    /// (every byte a run reads back) and the weights for non-finite values, and what
+    /// `alongside` makes of the weights while they are verified (returned only if they pass).
+    fn tensors_with<T: Send>(
+        self,
+        alongside: impl FnOnce(&[Entry]) -> T + Send,
+    ) -> Result<(Vec<Entry>, Option<Bytes>, T), FormatProblem> {
+        let (model, optimizer) = split(self.reader.into_tensors()?)?;
+        let (verified, made) = rayon::join(|| verify(&model, self.checksum.as_deref()), || alongside(&model));
+        verified?;
         if self.state_checked {
             let stored = self.metadata.get(key::STATE).cloned().unwrap_or_default();
             let computed = state_checksum(State {
@@ -482,7 +566,7 @@ impl Opened {
                 return Err(FormatProblem::StateChecksum { stored, computed });
             }
         }
-        Ok((model, optimizer))
+        Ok((model, optimizer, made))
     }
 }
 
@@ -519,6 +603,21 @@ impl Entry {
     fn in_dtype(self, dtype: DType) -> Self {
         let data = if self.data.dtype().is_float() { self.data.convert_dtype(dtype) } else { self.data };
         Self { data, ..self }
+    }
+
+    /// A copy with a float tensor in f32: half precision converted a slice at a time (the
+    /// processor's conversion instructions where it has them), not value by value.
+    fn to_f32(&self) -> Self {
+        let data = match (self.data.dtype(), self.data.as_slice::<f16>()) {
+            (DType::F16, Ok(halves)) => {
+                let mut values = vec![0.0f32; halves.len()];
+                halves.convert_to_f32_slice(&mut values);
+                TensorData::new(values, self.data.shape().clone())
+            }
+            (dtype, _) if dtype.is_float() => self.data.clone().convert_dtype(DType::F32),
+            _ => self.data.clone(),
+        };
+        Self { name: self.name.clone(), id: self.id, data }
     }
 
     fn into_pack(self) -> burn_pack::Tensor {
@@ -625,13 +724,8 @@ fn is_finite(data: &TensorData) -> bool {
     }
 }
 
-/// Splits a checkpoint's tensors back into the model's and the optimizer's burnpack buffer,
-/// checking the model's against `stored` (its checksum, when the format has one) and for
-/// non-finite values.
-fn split(
-    tensors: Vec<burn_pack::Tensor>,
-    stored: Option<&str>,
-) -> Result<(Vec<Entry>, Option<Bytes>), FormatProblem> {
+/// Splits a checkpoint's tensors back into the model's and the optimizer's burnpack buffer.
+fn split(tensors: Vec<burn_pack::Tensor>) -> Result<(Vec<Entry>, Option<Bytes>), FormatProblem> {
     let (mut model, mut optimizer) = (Vec::new(), None);
     for tensor in tensors {
         let entry = Entry::from_pack(tensor)?;
@@ -646,6 +740,12 @@ fn split(
     if model.is_empty() {
         return Err(FormatProblem::NoWeights);
     }
+    Ok((model, optimizer))
+}
+
+/// Checks the model's tensors against `stored` (their checksum, when the format has one) and
+/// for non-finite values.
+fn verify(model: &[Entry], stored: Option<&str>) -> Result<(), FormatProblem> {
     if let Some(stored) = stored {
         let computed = checksum(model.iter().map(|e| (e.name.as_str(), &e.data)));
         if computed != stored {
@@ -655,5 +755,5 @@ fn split(
     if let Some(entry) = model.iter().find(|e| !is_finite(&e.data)) {
         return Err(FormatProblem::NonFinite(entry.name.clone()));
     }
-    Ok((model, optimizer))
+    Ok(())
 }

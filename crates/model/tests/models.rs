@@ -171,6 +171,40 @@ fn checkpoints_round_trip_and_refuse_what_does_not_fit() {
 }
 
 #[test]
+fn a_checkpoint_built_into_a_program_is_read_at_any_alignment() {
+    let device = Device::flex();
+    let config = tiny();
+    let dir = std::env::temp_dir().join(format!("supersvg-in-memory-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = crops(2, &config, &device);
+    let coarse = CoarseModel::new(&config, &device);
+    for dtype in [DType::F16, DType::F32] {
+        let path = dir.join("coarse.ckpt");
+        Checkpoint::of_model(Stage::Coarse, &config, &coarse, dtype).save(&path).unwrap();
+        let (from_file, _) = load_coarse(&path, &device).unwrap();
+        let expected = values(&from_file.forward(input.clone()));
+        let file = std::fs::read(&path).unwrap();
+        // On a 256-byte boundary the bytes are read in place; one byte past it they are copied
+        // first (a half or a float cannot be read from an odd address).
+        for offset in [0, 1] {
+            let bytes = past_boundary(&file, offset);
+            let opened = Checkpoint::open_bytes(bytes, std::path::Path::new("built-in coarse.ckpt")).unwrap();
+            let model = opened.build(CoarseModel::new(&config, &device)).unwrap();
+            assert_eq!(values(&model.forward(input.clone())), expected, "{dtype:?}, offset {offset}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `bytes` copied to `offset` bytes past a 256-byte boundary, for the life of the test program.
+fn past_boundary(bytes: &[u8], offset: usize) -> &'static [u8] {
+    let buffer: &'static mut [u8] = Box::leak(vec![0u8; bytes.len() + 256 + offset].into_boxed_slice());
+    let start = buffer.as_ptr().align_offset(256) + offset;
+    buffer[start..start + bytes.len()].copy_from_slice(bytes);
+    &buffer[start..start + bytes.len()]
+}
+
+#[test]
 fn damaged_or_diverged_weights_are_refused_by_name() {
     let dir = std::env::temp_dir().join(format!("supersvg-damaged-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
