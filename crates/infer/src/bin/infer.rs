@@ -7,7 +7,7 @@ use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use anyhow::Context;
 use clap::error::ErrorKind;
@@ -23,6 +23,7 @@ use infer::{
     PathBudget, Progress, Refiner, Report, Split, bundled, run_with_progress,
 };
 use raster::{Backend, SvgOptions};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Vectorize images into SVG with SuperSVG.
@@ -128,6 +129,7 @@ impl Args {
             tolerance: self.tolerance,
             operating_point: self.operating_point,
             refiner: self.refiner,
+            ssim: self.metrics.is_some(),
             ..Job::default()
         };
         job.validate().map_err(|err| format!("{}: {err}", self.flag(&err)))?;
@@ -149,14 +151,14 @@ impl Args {
     }
 }
 
-/// Set by the first Ctrl-C (or SIGTERM) during a job that fine-tunes: fine-tuning stops with the
-/// best drawing so far, which is written, and no further input is started.
+/// Set by the first Ctrl-C (or SIGTERM) in a job that fine-tunes: fine-tuning stops with the
+/// best drawings so far, which are written, and no further input is started.
 static STOP: AtomicBool = AtomicBool::new(false);
-/// Whether the job under way fine-tunes (a stop then writes its best drawing, instead of ending
-/// the program at once).
+/// Whether the job fine-tunes (a stop then writes the drawings under way, instead of ending the
+/// program at once).
 static FINETUNING: AtomicBool = AtomicBool::new(false);
 
-/// Ctrl-C and SIGTERM: during fine-tuning the first asks for the best drawing so far to be
+/// Ctrl-C and SIGTERM: in a job that fine-tunes the first asks for the drawings under way to be
 /// written; otherwise, or the second time, the program ends at once (status 130; every file it
 /// writes appears whole or not at all).
 fn catch_interrupts() {
@@ -236,8 +238,15 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
         );
     }
     let bar = Bar::new("", jobs.len() as u64, "images", jobs.len() > 1 && !args.quiet);
-    let mut failed = 0;
-    for planned in jobs.iter().take_while(|_| !STOP.load(Ordering::SeqCst)) {
+    let failed = AtomicUsize::new(0);
+    FINETUNING.store(job.finetune.is_some(), Ordering::SeqCst);
+    // Images in parallel, each taking the next free core; the stages of one image split over
+    // the cores that are idle (the same rayon pool), so one large image still uses them all.
+    // Each drawing depends on its image alone: the SVGs are those of one run per image.
+    jobs.par_iter().for_each(|planned| {
+        if STOP.load(Ordering::SeqCst) {
+            return;
+        }
         match process(planned, &models, job, args, &device, &bar) {
             Ok(line) if !args.quiet => bar.println(&line),
             Ok(_) => {}
@@ -247,13 +256,13 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
                     Some(decoding) => format!("error: {decoding}"),
                     None => format!("error: {}: {message:#}", planned.name()),
                 });
-                failed += 1;
+                failed.fetch_add(1, Ordering::SeqCst);
             }
         }
         bar.inc();
-    }
+    });
     bar.finish();
-    Ok(failed)
+    Ok(failed.into_inner())
 }
 
 /// The metrics file: the job's report and the input it was made from.
@@ -301,10 +310,7 @@ fn process(
         }
         if STOP.load(Ordering::SeqCst) { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
     };
-    FINETUNING.store(job.finetune.is_some(), Ordering::SeqCst);
-    let outcome = run_with_progress(models, &loaded, job, device, &mut show);
-    FINETUNING.store(false, Ordering::SeqCst);
-    let outcome = outcome?;
+    let outcome = run_with_progress(models, &loaded, job, device, &mut show)?;
     if let Some(tuning) = tuning {
         tuning.finish();
     }
