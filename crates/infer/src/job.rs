@@ -226,6 +226,10 @@ pub struct Job {
     pub batch: usize,
     /// Who proposes the refinement stage's paths: E_r, or the exact optimizer in its place.
     pub refiner: Refiner,
+    /// Whether the report measures the drawing's SSIM beside its PSNR ([`crate::Report::ssim`]): a
+    /// pass over the whole image in five moments, so only a caller that reads it asks
+    /// (`infer --metrics`).
+    pub ssim: bool,
 }
 
 impl Default for Job {
@@ -240,6 +244,7 @@ impl Default for Job {
             tolerance: None,
             batch: 32,
             refiner: Refiner::Network,
+            ssim: false,
         }
     }
 }

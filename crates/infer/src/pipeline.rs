@@ -77,8 +77,8 @@ pub struct Report {
     pub mse: f64,
     /// Its PSNR (dB).
     pub psnr: f64,
-    /// Its SSIM ([`common::ssim`]).
-    pub ssim: f64,
+    /// Its SSIM ([`common::ssim`]), when the job asked for it ([`Job::ssim`]).
+    pub ssim: Option<f64>,
     /// Fine-tuning steps taken (SuperSVG-F only).
     pub finetune_steps: Option<usize>,
     /// Size of the SVG.
@@ -230,7 +230,7 @@ fn export(
     let svg = to_svg_with(&scene.scene(), &layers, width, height, &job.svg)?;
     let canvas = scene.canvas_image();
     let mse = common::mse(&canvas, &image.image);
-    let ssim = common::ssim(&canvas, &image.image);
+    let ssim = job.ssim.then(|| common::ssim(&canvas, &image.image));
     let export = clock.elapsed().as_secs_f64();
     let Drawn { auto_budget, budget, point, refinement, mut seconds } = drawn;
     seconds.export = export;

@@ -32,9 +32,12 @@ fn writes_what_the_library_call_returns() {
         infer::Models::load(&fixture.path("coarse.ckpt"), Some(&fixture.path("refine.ckpt")), &device)
             .unwrap();
     let image = common::decode::load(&photo, 512).unwrap();
-    let job = infer::Job { paths: infer::PathBudget::Count(30), ..infer::Job::default() };
+    let job = infer::Job { paths: infer::PathBudget::Count(30), ssim: true, ..infer::Job::default() };
     let outcome = infer::run(&models, &image, &job, &device).unwrap();
     assert!(std::fs::read_to_string(&out).unwrap() == outcome.svg, "the SVG differs from the call's");
+    // SSIM is measured only where it is asked for: --metrics asks.
+    let unmeasured = infer::run(&models, &image, &infer::Job { ssim: false, ..job }, &device).unwrap();
+    assert_eq!((unmeasured.report.ssim, unmeasured.svg), (None, outcome.svg.clone()));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
     assert_eq!(report["input"], photo.to_str().unwrap());
@@ -45,6 +48,8 @@ fn writes_what_the_library_call_returns() {
     let psnr = report["psnr"].as_f64().unwrap();
     assert!((psnr - outcome.report.psnr).abs() <= 1e-12 * psnr, "{psnr} against {}", outcome.report.psnr);
     assert_eq!(report["paths_by_stage"], serde_json::to_value(outcome.report.paths_by_stage).unwrap());
+    let ssim = report["ssim"].as_f64().expect("--metrics measures SSIM");
+    assert!((ssim - outcome.report.ssim.unwrap()).abs() <= 1e-12, "{ssim} against {:?}", outcome.report.ssim);
     assert!(report["seconds"]["total"].as_f64().unwrap() > 0.0);
 }
 
