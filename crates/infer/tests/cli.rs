@@ -84,6 +84,35 @@ fn tiny_transparent_and_very_large_images() {
     parse_svg(&out.join("alpha.svg"));
 }
 
+/// Several inputs are drawn in parallel in one call, and each SVG is the one a call for that
+/// input alone writes.
+#[test]
+fn a_batch_writes_what_one_call_per_input_writes() {
+    let fixture = Fixture::new("batch");
+    let photo = image::open(fixture.path("photo.png")).unwrap();
+    let names = ["photo.png", "flipped.png", "small.png", "rotated.png"];
+    photo.fliph().save(fixture.path(names[1])).unwrap();
+    photo.thumbnail(40, 40).save(fixture.path(names[2])).unwrap();
+    photo.rotate90().save(fixture.path(names[3])).unwrap();
+    let inputs: Vec<PathBuf> = names.iter().map(|name| fixture.path(name)).collect();
+    let out = fixture.path("out/");
+    let mut args: Vec<&str> = inputs.iter().map(|p| p.to_str().unwrap()).collect();
+    args.extend(["-o", out.to_str().unwrap(), "--paths", "30"]);
+    let result = fixture.infer(&args);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    for input in &inputs {
+        let alone = fixture.path("alone.svg");
+        let result = fixture.infer(&[input.to_str().unwrap(), "-o", alone.to_str().unwrap(), "--paths", "30"]);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        let batched = out.join(input.with_extension("svg").file_name().unwrap());
+        assert!(
+            std::fs::read(&batched).unwrap() == std::fs::read(&alone).unwrap(),
+            "{} differs from its call alone",
+            batched.display()
+        );
+    }
+}
+
 #[test]
 fn bad_inputs_fail_alone_with_clear_messages_and_no_partial_files() {
     let fixture = Fixture::new("bad");
