@@ -102,7 +102,8 @@ fn a_batch_writes_what_one_call_per_input_writes() {
     assert!(result.status.success(), "{}", text(&result.stderr));
     for input in &inputs {
         let alone = fixture.path("alone.svg");
-        let result = fixture.infer(&[input.to_str().unwrap(), "-o", alone.to_str().unwrap(), "--paths", "30"]);
+        let result =
+            fixture.infer(&[input.to_str().unwrap(), "-o", alone.to_str().unwrap(), "--paths", "30"]);
         assert!(result.status.success(), "{}", text(&result.stderr));
         let batched = out.join(input.with_extension("svg").file_name().unwrap());
         assert!(

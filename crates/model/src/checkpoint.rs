@@ -322,6 +322,7 @@ impl Checkpoint {
     /// [`Checkpoint::open`] of a checkpoint built into the program, read where it lies (not
     /// copied: a program that never builds the network never touches its weights); `name`
     /// stands for it in errors.
+    ///
     /// The bytes must start on a [`burn_pack::TENSOR_ALIGNMENT`] boundary to be read in place
     /// (tensors are read as slices of f16 or f32); others are copied first.
     pub fn open_bytes(bytes: &'static [u8], name: &Path) -> Result<Opened, CheckpointError> {
@@ -360,13 +361,12 @@ impl Checkpoint {
     pub fn apply<M: Module>(&self, model: M, path: &Path) -> Result<M, CheckpointError> {
         let weights = entries(&self.model)
             .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
-        apply(model, weights, path)
+        apply(model, weights.iter().map(Entry::to_f32).collect(), path)
     }
 }
 
-/// `model` with `weights` (tensors named by module path), each becoming an f32 tensor as it is
-/// placed: the one conversion of a weight stored in f16, straight from the bytes it was read
-/// in, with no record built in between. In f32, the dtype every model here computes in: a
+/// `model` with `weights` (tensors named by module path, floats already in f32:
+/// [`Entry::to_f32`]), each placed in the dtype it holds, with no record built in between: a
 /// parameter's own dtype is not asked, which would draw its random initialization only to
 /// replace it. Every parameter must get a weight of its shape, and every weight a parameter.
 fn apply<M: Module>(model: M, weights: Vec<Entry>, path: &Path) -> Result<M, CheckpointError> {
@@ -412,8 +412,7 @@ impl Placing {
             self.problems.push(format!("{path}: stored {:?}, the model has {shape:?}", data.shape()));
             return None;
         }
-        let dtype = if data.dtype().is_float() { DType::F32 } else { data.dtype() };
-        let id = id.map_or_else(ParamId::new, ParamId::from);
+        let (dtype, id) = (data.dtype(), id.map_or_else(ParamId::new, ParamId::from));
         Some((Tensor::from_data(data, (device, dtype)), id))
     }
 }
