@@ -1,5 +1,5 @@
 //! The primitives every supersvg crate shares, each defined once: rectangles that cannot be
-//! inverted ([`Rect`]: pixel boxes and unit-square bounds), the area of a polygon, reading an image at the working
+//! inverted ([`Rect`]: pixel boxes and unit-square bounds), the area of a polygon, linear colour ramps and the pixel statistics that fit them ([`Ramp`], [`Moments`]), reading an image at the working
 //! resolution from a file, bytes or pixels ([`decode`]), listing a folder of inputs ([`folder`]), quality measures ([`metrics`]: MSE,
 //! PSNR, SSIM), writing files so that no partial or hijacked file is ever left ([`write`]) and never over an
 //! input ([`outputs`]),
@@ -14,6 +14,7 @@ pub mod outputs;
 mod polygon;
 #[cfg(feature = "progress")]
 pub mod progress;
+mod ramp;
 mod rect;
 #[cfg(feature = "testing")]
 pub mod testing;
@@ -22,4 +23,5 @@ pub mod write;
 pub use decode::{DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout, WORKING_SIZES};
 pub use metrics::{mse, psnr, psnr_of_mse, ssim};
 pub use polygon::signed_area;
+pub use ramp::{LinearFit, Moments, Ramp};
 pub use rect::{Bounds, PixelBox, Rect};
