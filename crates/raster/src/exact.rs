@@ -1,7 +1,8 @@
 //! The exact renderer: tiny-skia's anti-aliased scanline fill of the true shapes.
 //!
 //! Used for previews, metrics and as ground truth for the soft rasterizer. Same layout and
-//! painter's order as [`crate::render_soft`], nonzero fill rule, linear (non-gamma) blending.
+//! painter's order as [`crate::render_soft`], nonzero fill rule, linear (non-gamma) blending;
+//! ramps ([`crate::Fill::Linear`]) interpolated in sRGB values, as SVG's renderers do.
 
 use image::RgbImage;
 use tiny_skia::{Color, FillRule, Mask, Paint, Pixmap, Transform};
@@ -37,10 +38,8 @@ pub fn paint_exact(
     origin: (u32, u32),
 ) -> bool {
     let Some(outline) = skia_outline(path) else { return false };
-    let [r, g, b] = path.color().map(|c| c.clamp(0.0, 1.0));
-    let Some(color) = Color::from_rgba(r, g, b, path.alpha().clamp(0.0, 1.0)) else { return false };
-    let mut paint = Paint::default();
-    paint.set_color(color);
+    let Some(shader) = path.fill().shader(path.alpha(), canvas) else { return false };
+    let paint = Paint { shader, ..Paint::default() };
     pixmap.fill_path(&outline, &paint, FillRule::Winding, canvas_transform(canvas, origin), None);
     true
 }

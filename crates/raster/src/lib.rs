@@ -1,12 +1,14 @@
 //! Rendering for supersvg: the path layout every crate shares, the differentiable soft
 //! rasterizer used for training, the exact tiny-skia renderer used for pictures and metrics, SVG
-//! export, and the choice of compute backend.
+//! export, the paints shapes are filled with ([`Fill`]: a colour or a [`Ramp`]), and the choice of
+//! compute backend.
 
 mod adam;
 mod decimals;
 pub mod device;
 mod exact;
 mod exact_batch;
+mod fill;
 mod fit;
 mod geometry;
 mod gradient;
@@ -17,10 +19,12 @@ mod soft;
 mod svg;
 
 pub use adam::PathAdam;
+pub use common::Ramp;
 pub use decimals::{Decimals, MAX_DECIMALS};
 pub use device::{Backend, BackendError};
 pub use exact::{coverage_exact, coverage_exact_window, paint_exact, render_exact, skia_outline};
 pub use exact_batch::ExactBatch;
+pub use fill::Fill;
 pub use fit::{fit_curve, fit_outline};
 pub use geometry::{bernstein, cubic_point};
 pub use gradient::Window;

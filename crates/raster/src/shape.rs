@@ -8,13 +8,19 @@ use common::{Bounds, PixelBox, signed_area};
 use tiny_skia::PathBuilder;
 
 use crate::decimals::Decimals;
+use crate::fill::Fill;
 use crate::geometry::cubic_point;
 use crate::path::{Path, SEGMENTS};
 
-/// A closed outline filled with one colour, in the unit square of a canvas.
+/// A closed outline and its paint, in the unit square of a canvas.
 pub trait Filled {
-    /// Fill colour, RGB in [0, 1].
+    /// The one colour that stands for its paint ([`Fill::color`]), RGB in [0, 1]: what a
+    /// consumer that fills with one colour uses.
     fn color(&self) -> [f32; 3];
+    /// Its paint: one colour unless the shape carries a ramp.
+    fn fill(&self) -> Fill {
+        Fill::Solid(self.color())
+    }
     /// Opacity in [0, 1]; 0 means invisible.
     fn alpha(&self) -> f32;
     /// Whether every coordinate, the colour and the opacity are finite numbers.
@@ -38,6 +44,10 @@ pub trait Filled {
 impl<T: Filled + ?Sized> Filled for &T {
     fn color(&self) -> [f32; 3] {
         (**self).color()
+    }
+
+    fn fill(&self) -> Fill {
+        (**self).fill()
     }
 
     fn alpha(&self) -> f32 {
@@ -187,7 +197,7 @@ impl Contour {
     }
 }
 
-/// Closed contours filled together with one colour (nonzero rule: a contour winding the other
+/// Closed contours filled together with one [`Fill`] (nonzero rule: a contour winding the other
 /// way is a hole), in the unit square of a canvas: a region, or a set of regions, drawn along
 /// the boundary curves it shares with its neighbours.
 #[derive(Clone, Debug, PartialEq)]
@@ -195,8 +205,8 @@ pub struct Outline {
     contours: Vec<Contour>,
     /// The hull of every point, found once: scenes ask for it at every repaint.
     bounds: Option<Bounds>,
-    /// Fill colour, RGB in [0, 1].
-    pub color: [f32; 3],
+    /// Its paint (ramp points in the unit square, like the contours).
+    pub fill: Fill,
     /// Opacity in [0, 1]; 0 means invisible.
     pub alpha: f32,
 }
@@ -204,21 +214,22 @@ pub struct Outline {
 impl Outline {
     /// The outline of `contours`; `None` without a contour of at least two pieces (one piece
     /// encloses nothing).
-    pub fn new(contours: Vec<Contour>, color: [f32; 3], alpha: f32) -> Option<Self> {
+    pub fn new(contours: Vec<Contour>, fill: impl Into<Fill>, alpha: f32) -> Option<Self> {
+        let fill = fill.into();
         let contours: Vec<Contour> = contours.into_iter().filter(|c| !c.segments.is_empty()).collect();
         // A cubic lies within its control points' hull.
         let points: Vec<[f32; 2]> = contours.iter().flat_map(Contour::points).collect();
         let bounds = Bounds::of_points(&points);
-        contours.iter().any(|c| c.segments.len() >= 2).then_some(Self { contours, bounds, color, alpha })
+        contours.iter().any(|c| c.segments.len() >= 2).then_some(Self { contours, bounds, fill, alpha })
     }
 
     /// The polygon through `corners` (closed back to the first); `None` with fewer than three.
-    pub fn polygon(corners: &[[f32; 2]], color: [f32; 3], alpha: f32) -> Option<Self> {
+    pub fn polygon(corners: &[[f32; 2]], fill: impl Into<Fill>, alpha: f32) -> Option<Self> {
         if corners.len() < 3 {
             return None;
         }
         let segments = corners[1..].iter().chain(&corners[..1]).map(|&p| Segment::Line(p)).collect();
-        Self::new(vec![Contour { start: corners[0], segments }], color, alpha)
+        Self::new(vec![Contour { start: corners[0], segments }], fill, alpha)
     }
 
     /// Its contours.
@@ -239,7 +250,11 @@ impl Outline {
 
 impl Filled for Outline {
     fn color(&self) -> [f32; 3] {
-        self.color
+        self.fill.color()
+    }
+
+    fn fill(&self) -> Fill {
+        self.fill
     }
 
     fn alpha(&self) -> f32 {
@@ -248,7 +263,7 @@ impl Filled for Outline {
 
     fn is_finite(&self) -> bool {
         let points = self.contours.iter().flat_map(Contour::points).flatten();
-        points.chain(self.color).chain([self.alpha]).all(f32::is_finite)
+        points.chain([self.alpha]).all(f32::is_finite) && self.fill.is_finite()
     }
 
     fn bounds(&self) -> Option<Bounds> {
@@ -376,6 +391,10 @@ impl Filled for Shape {
         self.filled().color()
     }
 
+    fn fill(&self) -> Fill {
+        self.filled().fill()
+    }
+
     fn alpha(&self) -> f32 {
         self.filled().alpha()
     }
@@ -479,6 +498,6 @@ mod tests {
         assert_eq!((shape.color(), shape.alpha(), shape.bounds()), (path.color, path.alpha, path.bounds()));
         let polygon = Outline::polygon(&[[0.1, 0.1], [0.9, 0.1], [0.9, 0.9]], [0.3; 3], 1.0).unwrap();
         let shape = Shape::from(polygon.clone());
-        assert_eq!((shape.color(), shape.bounds()), (polygon.color, polygon.bounds()));
+        assert_eq!((shape.fill(), shape.bounds()), (polygon.fill, polygon.bounds()));
     }
 }

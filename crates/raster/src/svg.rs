@@ -1,8 +1,10 @@
-//! SVG export: one `<path>` per visible shape, in painter's order.
+//! SVG export: one `<path>` per visible shape, in painter's order; the ramps they are filled
+//! with as `<linearGradient>`s in `<defs>`, in user space (the viewBox's pixels).
 
 use std::fmt::Write;
 
 use crate::decimals::{Decimals, MAX_DECIMALS};
+use crate::fill::Fill;
 use crate::shape::Filled;
 
 /// Why a set of paths cannot be written as SVG.
@@ -42,7 +44,9 @@ impl Default for SvgOptions {
 /// Writes `paths` (unit-square coordinates) as an SVG document of `width × height` pixels.
 ///
 /// The viewBox is in pixels; a background rectangle is painted first when `background` is given.
-/// Paths with α ≤ 0 are invisible and left out; `fill-opacity` is written when α < 1; every path
+/// Paths with α ≤ 0 are invisible and left out; `fill-opacity` is written when α < 1; a ramp is
+/// a `linearGradient` (ids `a`, `b`, …, `aa`, … in painter's order, end points in pixels with the
+/// coordinates' decimals, `spreadMethod` left at its default, pad); every path
 /// says `fill-rule="nonzero"` so all viewers fill self-intersections the way the renderers do.
 /// Colours and α are clamped to [0, 1]. Coordinates are written with 1/100 pixel precision.
 pub fn to_svg<F: Filled>(
@@ -82,12 +86,39 @@ pub fn to_svg_with<F: Filled>(
     }
     let (sx, sy) = (width as f32, height as f32);
     let decimals = Decimals::new(options.decimals);
+    if let Some(index) = paths.iter().position(|path| !path.is_finite()) {
+        return Err(SvgError::NonFinite { index });
+    }
+    let visible = |path: &&F| path.alpha() > 0.0;
+    let mut ramps = 0;
+    for path in paths.iter().filter(visible) {
+        if let Fill::Linear(ramp) = path.fill() {
+            if ramps == 0 {
+                svg.push_str("<defs>\n");
+            }
+            let number = |value: f32| decimals.number(value);
+            let _ = writeln!(
+                svg,
+                "<linearGradient id=\"{}\" gradientUnits=\"userSpaceOnUse\" x1=\"{}\" y1=\"{}\" x2=\"{}\" \
+                 y2=\"{}\"><stop stop-color=\"{}\"/><stop offset=\"1\" stop-color=\"{}\"/></linearGradient>",
+                gradient_id(ramps),
+                number(ramp.start[0] * sx),
+                number(ramp.start[1] * sy),
+                number(ramp.end[0] * sx),
+                number(ramp.end[1] * sy),
+                hex(ramp.stops[0]),
+                hex(ramp.stops[1]),
+            );
+            ramps += 1;
+        }
+    }
+    if ramps > 0 {
+        svg.push_str("</defs>\n");
+    }
+    let mut ramps = 0;
     let mut open: Option<u32> = None;
     for (index, path) in paths.iter().enumerate() {
-        if !path.is_finite() {
-            return Err(SvgError::NonFinite { index });
-        }
-        if path.alpha() <= 0.0 {
+        if !visible(&path) {
             continue;
         }
         if layers[index] != open {
@@ -101,7 +132,15 @@ pub fn to_svg_with<F: Filled>(
         }
         svg.push_str("<path d=\"");
         path.svg_data([sx, sy], decimals, &mut svg);
-        let _ = write!(svg, "\" fill=\"{}\"", hex(path.color()));
+        match path.fill() {
+            Fill::Solid(color) => {
+                let _ = write!(svg, "\" fill=\"{}\"", hex(color));
+            }
+            Fill::Linear(_) => {
+                let _ = write!(svg, "\" fill=\"url(#{})\"", gradient_id(ramps));
+                ramps += 1;
+            }
+        }
         if path.alpha() < 1.0 {
             let _ = write!(svg, " fill-opacity=\"{}\"", decimals.number(path.alpha()));
         }
@@ -112,6 +151,20 @@ pub fn to_svg_with<F: Filled>(
     }
     svg.push_str("</svg>\n");
     Ok(svg)
+}
+
+/// The id of the `index`-th gradient: `a` … `z`, then `aa`, `ab`, … (bijective base 26).
+fn gradient_id(mut index: usize) -> String {
+    let mut id = Vec::new();
+    loop {
+        id.push(b'a' + (index % 26) as u8);
+        if index < 26 {
+            break;
+        }
+        index = index / 26 - 1;
+    }
+    id.reverse();
+    String::from_utf8(id).expect("ASCII letters")
 }
 
 /// `#rrggbb` of a colour in [0, 1] (clamped).
@@ -162,5 +215,60 @@ mod tests {
         assert!(svg.contains("M25 25C"), "{svg}");
         let tree = resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default());
         assert!(tree.is_ok(), "well-formed");
+    }
+
+    #[test]
+    fn a_ramp_is_a_gradient_that_resvg_draws_as_the_exact_renderer_does() {
+        // Two ramps (one across the canvas, one in a hole-free quarter) and a flat square, over
+        // white, written at 2 decimals: resvg's reading matches render_exact to the rounding of
+        // 8-bit stops.
+        use crate::shape::Outline;
+        use common::Ramp;
+        let big = Outline::polygon(
+            &[[0.05, 0.05], [0.95, 0.1], [0.9, 0.95], [0.1, 0.9]],
+            Ramp { start: [0.1, 0.2], end: [0.8, 0.7], stops: [[0.9, 0.2, 0.1], [0.1, 0.3, 0.8]] },
+            1.0,
+        )
+        .unwrap();
+        let small = Outline::polygon(
+            &[[0.5, 0.5], [0.9, 0.5], [0.9, 0.9]],
+            Ramp { start: [0.9, 0.5], end: [0.5, 0.9], stops: [[1.0, 1.0, 0.0], [0.0, 0.5, 0.5]] },
+            0.75,
+        )
+        .unwrap();
+        let flat = Outline::polygon(&[[0.2, 0.6], [0.4, 0.6], [0.4, 0.8], [0.2, 0.8]], [0.3, 0.6, 0.3], 1.0)
+            .unwrap();
+        let shapes = [big, flat, small];
+        let svg = to_svg(&shapes, 120, 80, Some([1.0; 3])).unwrap();
+        assert_eq!(svg.matches("<linearGradient").count(), 2, "{svg}");
+        assert!(svg.contains("fill=\"url(#a)\"") && svg.contains("fill=\"url(#b)\""), "{svg}");
+        assert!(svg.contains("x1=\"12\" y1=\"16\" x2=\"96\" y2=\"56\""), "{svg}");
+        let tree = resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default()).unwrap();
+        let mut read = resvg::tiny_skia::Pixmap::new(120, 80).unwrap();
+        resvg::render(&tree, resvg::tiny_skia::Transform::identity(), &mut read.as_mut());
+        let ours = crate::render_exact(&shapes, 120, 80, [1.0; 3]);
+        let diffs: Vec<(usize, u8)> = read
+            .pixels()
+            .iter()
+            .zip(ours.pixels())
+            .map(|(a, b)| [a.red().abs_diff(b.0[0]), a.green().abs_diff(b.0[1]), a.blue().abs_diff(b.0[2])])
+            .map(|d| d.into_iter().max().unwrap())
+            .enumerate()
+            .filter(|d| d.1 > 2)
+            .collect();
+        let at: Vec<(usize, usize, u8)> =
+            diffs.iter().map(|&(i, d)| (i % 120, i / 120, d)).take(40).collect();
+        assert!(diffs.is_empty(), "{} differ: {at:?}", diffs.len());
+        // The ramp shows: the big shape's corners differ in colour as its stops do.
+        let (near, far) = (ours.get_pixel(14, 18).0, ours.get_pixel(100, 68).0);
+        assert!(near[0] > 200 && near[2] < 50 && far[2] > 150 && far[0] < 50, "{near:?} … {far:?}");
+    }
+
+    #[test]
+    fn gradient_ids_are_short_and_distinct() {
+        let ids: Vec<String> = [0, 1, 25, 26, 27, 701, 702].into_iter().map(gradient_id).collect();
+        assert_eq!(ids, ["a", "b", "z", "aa", "ab", "zz", "aaa"]);
+        let many: std::collections::HashSet<String> = (0..5000).map(gradient_id).collect();
+        assert_eq!(many.len(), 5000);
     }
 }

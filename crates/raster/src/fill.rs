@@ -1,0 +1,80 @@
+//! What a shape is filled with: one colour, or a linear ramp between two colours (SVG's
+//! `linearGradient` with two stops, padded beyond its ends), which draws a smooth shading in one
+//! shape where one colour would need many shapes to band it.
+
+use common::Ramp;
+use tiny_skia::{Color, GradientStop, LinearGradient, Point, Shader, SpreadMode, Transform};
+
+/// A shape's paint, in the frame of its outline (the unit square of a canvas). A ramp's end
+/// points are in that square too, and its lines of one colour are perpendicular to it on the
+/// canvas, in pixels, as SVG draws a gradient in user space: the square is stretched to the
+/// canvas first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Fill {
+    /// One colour, RGB in [0, 1].
+    Solid([f32; 3]),
+    /// A colour ramp.
+    Linear(Ramp),
+}
+
+impl Fill {
+    /// The one colour that stands for the fill: its colour, or the ramp's middle.
+    pub fn color(&self) -> [f32; 3] {
+        match self {
+            Fill::Solid(color) => *color,
+            Fill::Linear(ramp) => ramp.middle(),
+        }
+    }
+
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        match self {
+            Fill::Solid(color) => color.iter().all(|v| v.is_finite()),
+            Fill::Linear(ramp) => ramp.is_finite(),
+        }
+    }
+
+    /// The tiny-skia paint of the fill at opacity `alpha` (colours and α clamped to [0, 1]) for
+    /// a path in the unit square of a `canvas` = (width, height), drawn with the canvas's scale
+    /// (which tiny-skia applies to the paint too); `None` for a number that is not finite. A
+    /// ramp whose ends coincide paints its last stop, as SVG's renderers do.
+    pub(crate) fn shader(&self, alpha: f32, (width, height): (u32, u32)) -> Option<Shader<'static>> {
+        let color = |[r, g, b]: [f32; 3]| {
+            Color::from_rgba(r.clamp(0.0, 1.0), g.clamp(0.0, 1.0), b.clamp(0.0, 1.0), alpha.clamp(0.0, 1.0))
+        };
+        match self {
+            Fill::Solid(rgb) => Some(Shader::SolidColor(color(*rgb)?)),
+            Fill::Linear(ramp) => {
+                let stops = vec![
+                    GradientStop::new(0.0, color(ramp.stops[0])?),
+                    GradientStop::new(1.0, color(ramp.stops[1])?),
+                ];
+                // Laid out in pixels and scaled back to the square, so that the canvas's scale
+                // brings it to pixels unskewed.
+                let (width, height) = (width as f32, height as f32);
+                let point = |[x, y]: [f32; 2]| Point::from_xy(x * width, y * height);
+                let to_square = Transform::from_scale(1.0 / width, 1.0 / height);
+                let shader = LinearGradient::new(
+                    point(ramp.start),
+                    point(ramp.end),
+                    stops,
+                    SpreadMode::Pad,
+                    to_square,
+                );
+                shader.or_else(|| Some(Shader::SolidColor(color(ramp.stops[1])?)))
+            }
+        }
+    }
+}
+
+impl From<[f32; 3]> for Fill {
+    fn from(color: [f32; 3]) -> Self {
+        Fill::Solid(color)
+    }
+}
+
+impl From<Ramp> for Fill {
+    fn from(ramp: Ramp) -> Self {
+        Fill::Linear(ramp)
+    }
+}
