@@ -16,8 +16,9 @@ use model::OperatingPoint;
 use raster::Path;
 use superpixel::{Hierarchy, Segmentation, SlicError};
 
-use crate::fallback::FallbackDrawing;
-use crate::job::{AutoRule, Job, MAX_PATHS, PathBudget, Refiner, Split, Warning};
+use crate::fallback::{FallbackDrawing, Style};
+use crate::fills::Ramps;
+use crate::job::{AutoRule, Fills, Job, MAX_PATHS, PathBudget, Refiner, Split, Warning};
 use crate::models::Models;
 use crate::scene::{Scene, Tried, paint_with};
 use crate::segmentation::{hierarchy, max_regions};
@@ -34,9 +35,9 @@ pub struct BudgetPlan {
     pub point: OperatingPoint,
     /// The regions the image is cut into.
     pub regions: usize,
-    /// The tolerance the regions are drawn with (the job's, or curves for flat art under an
-    /// automatic budget).
-    pub tolerance: Option<f32>,
+    /// How the regions are drawn: the tolerance (the job's, or curves for flat art under an
+    /// automatic budget) and the fills (the job's, ramps priced at the cut).
+    pub style: Style,
     /// Whether the networks' paths are bought with regions ([`Market`]): unless the job fixed
     /// the region count.
     pub traded: bool,
@@ -74,7 +75,13 @@ impl BudgetPlan {
             }
         };
         let auto = matches!(job.paths, PathBudget::Auto(_));
-        let plan = Self { paths, auto, point, regions, tolerance, traded: job.regions.is_none() };
+        let ramps = match job.fills {
+            Fills::Flat => Ramps::None,
+            Fills::Linear => Ramps::Every,
+            Fills::Auto => Ramps::Paying { region_worth: region_worth(&tree, regions) },
+        };
+        let style = Style { tolerance, ramps };
+        let plan = Self { paths, auto, point, regions, style, traded: job.regions.is_none() };
         Ok((plan, tree, warnings))
     }
 
@@ -117,6 +124,16 @@ pub struct CoarseShare<'a> {
 
 /// The smallest budget the automatic ladder starts from: the background and 7 regions.
 const AUTO_FIRST: usize = 8;
+
+/// The squared error one region takes away at the cut of `tree` into `regions` regions: the
+/// mean of what the merges down to an eighth fewer regions (at least one) add, a merge each.
+fn region_worth(tree: &Hierarchy, regions: usize) -> f64 {
+    let coarser = regions.saturating_sub((regions / 8).max(1)).max(tree.fewest_regions()).max(1);
+    if coarser >= regions {
+        return 0.0;
+    }
+    (tree.flat_error(coarser) - tree.flat_error(regions)).max(0.0) / (regions - coarser) as f64
+}
 
 /// The automatic budget measures budgets up to this many paths on one merge tree made for it;
 /// a picture that climbs past it gets one more, made for the ceiling, for every larger rung.
@@ -194,24 +211,24 @@ pub struct Market<'a> {
     /// The image's merge tree, of which the scene's segmentation is a cut: what merging
     /// regions away costs, and the regions left.
     pub hierarchy: &'a Hierarchy,
-    /// The tolerance the fallback drawing of the merged regions is drawn with (as
-    /// [`FallbackDrawing::new`] takes it).
-    pub tolerance: Option<f32>,
+    /// How the fallback drawing of the merged regions is drawn (as [`FallbackDrawing::new`]
+    /// takes it).
+    pub style: Style,
     /// How merging regions away is priced.
     pub pricing: Pricing,
 }
 
 impl<'a> Market<'a> {
     /// The market for `fallback`, the fallback drawing of `segmentation` (a cut of
-    /// `hierarchy`), drawn with `tolerance`: priced as [`Pricing::for_drawing`] says.
+    /// `hierarchy`), drawn in `style`: priced as [`Pricing::for_drawing`] says.
     pub fn for_drawing(
         hierarchy: &'a Hierarchy,
         segmentation: &Segmentation,
         fallback: &FallbackDrawing,
-        tolerance: Option<f32>,
+        style: Style,
     ) -> Self {
         let pricing = Pricing::for_drawing(hierarchy.flat_error(segmentation.regions.len()), fallback.error);
-        Self { hierarchy, tolerance, pricing }
+        Self { hierarchy, style, pricing }
     }
 
     /// `target` drawn again on the cut of the merge tree with `regions` regions, coarser than
@@ -233,7 +250,7 @@ impl<'a> Market<'a> {
         for (region, path) in paths {
             proposals[fine_to_cut[region as usize] as usize].push(path);
         }
-        let merged = FallbackDrawing::new(target, &cut, self.tolerance);
+        let merged = FallbackDrawing::new(target, &cut, self.style);
         let order = merged.order.clone();
         let mut scene = merged.into_scene(target, &cut);
         let kept = paint_with(&mut scene, &order, proposals);
@@ -307,7 +324,7 @@ impl<'a> Prices<'a> {
         let drawn = match market.pricing {
             Pricing::Flat => (0.0, 0),
             Pricing::Drawn => {
-                let drawing = FallbackDrawing::new(target, fine, market.tolerance);
+                let drawing = FallbackDrawing::new(target, fine, market.style);
                 (drawing.error, drawing.placed().len())
             }
         };
@@ -356,7 +373,7 @@ impl<'a> Prices<'a> {
         {
             let merges = (2 * merges).clamp(1, self.most);
             let cut = Arc::new(self.market.hierarchy.cut(self.target, self.regions - merges));
-            let drawing = FallbackDrawing::new(self.target, &cut, self.market.tolerance);
+            let drawing = FallbackDrawing::new(self.target, &cut, self.market.style);
             let freed = self.fine.1.saturating_sub(drawing.placed().len());
             self.points.push((merges, drawing.error - self.fine.0, freed));
         }
@@ -429,7 +446,7 @@ mod tests {
     #[test]
     fn drawn_prices_are_read_between_the_measured_cuts() {
         let (image, segmentation, hierarchy) = quarters();
-        let market = Market { hierarchy: &hierarchy, tolerance: None, pricing: Pricing::Drawn };
+        let market = Market { hierarchy: &hierarchy, style: Style::default(), pricing: Pricing::Drawn };
         let mut prices = Prices::measured(&image, &segmentation, market, 8, (1.0, 17));
         prices.points = vec![(0, 0.0, 0), (1, 0.5, 1), (2, 1.5, 1), (4, 2.0, 3)];
         assert_eq!(prices.to_free(0), Some((0.0, 0)));
@@ -445,15 +462,15 @@ mod tests {
     #[test]
     fn drawn_prices_are_the_fallback_drawings_of_the_cuts() {
         let (image, segmentation, hierarchy) = quarters();
-        let market = Market { hierarchy: &hierarchy, tolerance: None, pricing: Pricing::Drawn };
+        let market = Market { hierarchy: &hierarchy, style: Style::default(), pricing: Pricing::Drawn };
         let regions = segmentation.regions.len();
         let mut prices = Prices::new(&image, &segmentation, market, regions - 1);
         prices.measure_to_free(&[1e9; 5]);
-        let fine = FallbackDrawing::new(&image, &segmentation, None);
+        let fine = FallbackDrawing::new(&image, &segmentation, Style::default());
         assert!(prices.points.len() > 2, "cuts measured: {:?}", prices.points);
         for &(merges, cost, freed) in &prices.points[1..] {
             let cut = Arc::new(hierarchy.cut(&image, regions - merges));
-            let drawing = FallbackDrawing::new(&image, &cut, None);
+            let drawing = FallbackDrawing::new(&image, &cut, Style::default());
             assert_eq!(cost, drawing.error - fine.error, "{merges} merges");
             assert_eq!(freed, fine.placed().len().saturating_sub(drawing.placed().len()), "{merges} merges");
         }
@@ -530,12 +547,12 @@ mod tests {
     #[test]
     fn a_redrawn_scene_is_the_coarser_cuts_drawing() {
         let (image, fine, hierarchy) = quarters();
-        let market = Market { hierarchy: &hierarchy, tolerance: None, pricing: Pricing::Flat };
+        let market = Market { hierarchy: &hierarchy, style: Style::default(), pricing: Pricing::Flat };
         let (scene, kept) = market.redraw(&image, &fine, 4, std::iter::empty());
         assert_eq!(scene.segmentation().regions.len(), 4);
         assert!(kept.is_empty());
         let cut = Arc::new(hierarchy.cut(&image, 4));
-        assert_eq!(scene.paths(), FallbackDrawing::new(&image, &cut, None).placed());
+        assert_eq!(scene.paths(), FallbackDrawing::new(&image, &cut, Style::default()).placed());
         // Each fine region maps to the one of the cut that holds its pixels.
         let map = region_map(&fine, &cut);
         for (&f, &c) in fine.labels.iter().zip(&cut.labels) {

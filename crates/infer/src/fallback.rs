@@ -10,12 +10,23 @@
 use std::sync::Arc;
 
 use image::Rgb32FImage;
-use raster::{Contour, Outline, Path, Segment, Shape, fit_curve, fit_outline, paint_exact};
+use raster::{Contour, Filled, Outline, Path, Segment, Shape, fit_curve, fit_outline, paint_exact};
 use rayon::prelude::*;
 use superpixel::{PlanarMap, Segmentation};
 use tiny_skia::Pixmap;
 
+use crate::fills::{Ramps, region_ramps};
 use crate::scene::{Origin, Placed, Scene, Scope};
+
+/// How the fallback draws its regions: their outlines and their fills.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Style {
+    /// `None`: each region's traced polygon, grown under the regions painted after it; else its
+    /// outline along the boundaries it shares, fitted within this many pixels.
+    pub tolerance: Option<f32>,
+    /// Which regions are filled with a ramp instead of their mean colour.
+    pub ramps: Ramps,
+}
 
 /// How far (pixels) a region's outline is pushed outwards when it is fitted with one path
 /// ([`fitted_path`]), so the paths of neighbouring regions overlap instead of leaving seams of
@@ -135,7 +146,7 @@ pub fn fitted_path(outline: &Outline, (width, height): (u32, u32)) -> Option<Pat
     let (width, height) = (width as f32, height as f32);
     let points: Vec<[f32; 2]> =
         outline.largest_contour(8).iter().map(|[x, y]| [x * width, y * height]).collect();
-    let path = fit_outline(&points, GROW, outline.color, outline.alpha)?;
+    let path = fit_outline(&points, GROW, outline.color(), outline.alpha)?;
     Some(path.map_points(|[x, y]| [x / width, y / height]))
 }
 
@@ -163,19 +174,19 @@ fn region_polygon(segmentation: &Segmentation, region: u32, rank: &[usize]) -> O
     Outline::polygon(&corners, segmentation.regions[region as usize].mean_color, 1.0)
 }
 
-/// Every region's shape in painter's order `order`, in parallel: its traced polygon
+/// Every region's outline in painter's order `order`, in parallel: its traced polygon
 /// ([`region_polygon`]) without a tolerance, else its outline of shared boundaries fitted
-/// within `tolerance` pixels ([`region_outline`]).
-fn traced(segmentation: &Segmentation, order: &[u32], tolerance: Option<f32>) -> Vec<Option<Shape>> {
+/// within `tolerance` pixels ([`region_outline`]); each in its mean colour.
+fn traced(segmentation: &Segmentation, order: &[u32], tolerance: Option<f32>) -> Vec<Option<Outline>> {
     let mut rank = vec![0; order.len()];
     for (place, &r) in order.iter().enumerate() {
         rank[r as usize] = place;
     }
     match tolerance {
-        None => order.par_iter().map(|&r| region_polygon(segmentation, r, &rank).map(Shape::from)).collect(),
+        None => order.par_iter().map(|&r| region_polygon(segmentation, r, &rank)).collect(),
         Some(tolerance) => {
             let boundaries = Boundaries::new(segmentation, tolerance);
-            let outline = |r: u32| region_outline(segmentation, &boundaries, r, &rank).map(Shape::from);
+            let outline = |r: u32| region_outline(segmentation, &boundaries, r, &rank);
             order.par_iter().map(|&r| outline(r)).collect()
         }
     }
@@ -202,12 +213,19 @@ pub struct FallbackDrawing {
 }
 
 impl FallbackDrawing {
-    /// Traces every region of `segmentation` (in parallel; with a `tolerance`, as shared
-    /// boundaries fitted within it, as `traced` does), fits the background of `image` under them,
-    /// renders the drawing and scores it.
-    pub fn new(image: &Arc<Rgb32FImage>, segmentation: &Arc<Segmentation>, tolerance: Option<f32>) -> Self {
+    /// Traces every region of `segmentation` (in parallel; with a tolerance, as shared
+    /// boundaries fitted within it, as `traced` does), fills each as `style` says, fits the
+    /// background of `image` under them, renders the drawing and scores it.
+    pub fn new(image: &Arc<Rgb32FImage>, segmentation: &Arc<Segmentation>, style: Style) -> Self {
         let order = painter_order(segmentation);
-        let regions = traced(segmentation, &order, tolerance);
+        let mut outlines = traced(segmentation, &order, style.tolerance);
+        let ramps = region_ramps(image, segmentation, &order, &outlines, style.ramps);
+        for (outline, ramp) in outlines.iter_mut().zip(ramps) {
+            if let (Some(outline), Some(ramp)) = (outline, ramp) {
+                outline.fill = ramp.into();
+            }
+        }
+        let regions: Vec<Option<Shape>> = outlines.into_iter().map(|o| o.map(Shape::from)).collect();
         let background = background(image, &regions.iter().flatten().cloned().collect::<Vec<_>>());
         let mut scene = Scene::new(image.clone(), segmentation.clone());
         scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background });
@@ -278,7 +296,7 @@ mod tests {
         let segmentation =
             Arc::new(slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap());
         let drawn = raster::render_exact(
-            &FallbackDrawing::new(&image, &segmentation, None).paths(),
+            &FallbackDrawing::new(&image, &segmentation, Style::default()).paths(),
             96,
             64,
             [1.0; 3],
@@ -319,7 +337,7 @@ mod tests {
             region.mean_color = [0.0; 3];
         }
         for (tolerance, most) in [(None, 4), (Some(0.0), 0), (Some(TOLERANCE), 0), (Some(2.0), 0)] {
-            let regions: Vec<Shape> = traced(&segmentation, &painter_order(&segmentation), tolerance)
+            let regions: Vec<Outline> = traced(&segmentation, &painter_order(&segmentation), tolerance)
                 .into_iter()
                 .flatten()
                 .collect();
@@ -372,14 +390,14 @@ mod tests {
         let flat = Arc::new(Rgb32FImage::from_pixel(48, 32, Rgb([0.2, 0.6, 0.4])));
         let segmentation =
             Arc::new(slic(&flat, &SlicOptions { n_segments: 12, ..Default::default() }).unwrap());
-        let drawing = FallbackDrawing::new(&flat, &segmentation, None);
+        let drawing = FallbackDrawing::new(&flat, &segmentation, Style::default());
         assert!(drawing.regions.iter().all(Option::is_none), "a region drew nothing yet was kept");
         assert_eq!(drawing.paths().len(), 1);
         assert!(drawing.error < 1e-3, "{}", drawing.error);
         let image = Arc::new(wavy_image());
         let segmentation =
             Arc::new(slic(&image, &SlicOptions { n_segments: 40, ..Default::default() }).unwrap());
-        let drawing = FallbackDrawing::new(&image, &segmentation, None);
+        let drawing = FallbackDrawing::new(&image, &segmentation, Style::default());
         assert!(drawing.regions.iter().filter(|r| r.is_some()).count() > 30, "regions that draw are kept");
         let rendered = raster::render_exact(&drawing.paths(), 96, 64, [1.0; 3]);
         let scene = Scene::drawn(image, segmentation, drawing.placed(), drawing.canvas.clone());
@@ -392,7 +410,7 @@ mod tests {
         let corners = vec![[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]];
         let polygon = Outline::polygon(&corners, [0.2, 0.4, 0.6], 1.0).unwrap();
         let path = fitted_path(&polygon, (20, 20)).unwrap();
-        assert_eq!((path.color, path.alpha), (polygon.color, polygon.alpha));
+        assert_eq!((path.color, path.alpha), (polygon.color(), polygon.alpha));
         // The square's area (1/4 of the canvas) grown by half a pixel on each side.
         let grown = (11.0f32 / 20.0).powi(2);
         assert!((path.signed_area().abs() - grown).abs() < 0.02, "{}", path.signed_area());

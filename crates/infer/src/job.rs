@@ -196,6 +196,38 @@ impl std::str::FromStr for Refiner {
 )]
 pub struct RefinerParseError(pub String);
 
+/// What regions are filled with (`infer --fills`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Fills {
+    /// Every region in its mean colour.
+    #[default]
+    Flat,
+    /// Every region whose pixels a linear ramp fits better, with that ramp.
+    Linear,
+    /// A ramp where it takes away more error than its bytes would as regions
+    /// ([`crate::stages::Ramps::Paying`]).
+    Auto,
+}
+
+impl std::str::FromStr for Fills {
+    type Err = FillsParseError;
+
+    /// `flat`, `linear` or `auto`.
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text {
+            "flat" => Ok(Fills::Flat),
+            "linear" => Ok(Fills::Linear),
+            "auto" => Ok(Fills::Auto),
+            _ => Err(FillsParseError(text.to_string())),
+        }
+    }
+}
+
+/// Text that is no [`Fills`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0:?} is not a fill: flat, linear or auto")]
+pub struct FillsParseError(pub String);
+
 /// Everything that decides how an image becomes an SVG.
 #[derive(Clone, Debug)]
 pub struct Job {
@@ -222,6 +254,8 @@ pub struct Job {
     /// better at equal paths, but for flat art under an automatic budget
     /// ([`AutoRule::flat_tolerance`]).
     pub tolerance: Option<f32>,
+    /// What the regions are filled with.
+    pub fills: Fills,
     /// Crops per network call (at least 1).
     pub batch: usize,
     /// Who proposes the refinement stage's paths: E_r, or the exact optimizer in its place.
@@ -242,6 +276,7 @@ impl Default for Job {
             svg: SvgOptions::default(),
             compactness: 30.0,
             tolerance: None,
+            fills: Fills::default(),
             batch: 32,
             refiner: Refiner::Network,
             ssim: false,

@@ -23,6 +23,7 @@ pub mod budget;
 pub mod cli;
 mod coarse;
 mod fallback;
+mod fills;
 mod finetune;
 mod job;
 mod models;
@@ -34,9 +35,9 @@ mod segmentation;
 
 pub use finetune::{FinetuneOptions, Limit, Progress, finetune, finetune_with_progress};
 pub use job::{
-    AutoRule, BudgetParseError, InvalidJob, Job, MAX_FINETUNE_SECS, MAX_FINETUNE_STEPS, MAX_OPTIMIZER_STEPS,
-    MAX_PATHS, MAX_TOLERANCE, MIN_PATHS, OPTIMIZER_STEPS, PathBudget, Refiner, RefinerParseError, Split,
-    SplitParseError, VectorizeError, Warning,
+    AutoRule, BudgetParseError, Fills, FillsParseError, InvalidJob, Job, MAX_FINETUNE_SECS,
+    MAX_FINETUNE_STEPS, MAX_OPTIMIZER_STEPS, MAX_PATHS, MAX_TOLERANCE, MIN_PATHS, OPTIMIZER_STEPS,
+    PathBudget, Refiner, RefinerParseError, Split, SplitParseError, VectorizeError, Warning,
 };
 pub use models::{
     BUILT_IN_COARSE, BUILT_IN_REFINE, BuiltIn, Context, Identity, MODELS_ENV, ModelSource, Models,
@@ -50,7 +51,8 @@ pub use scene::{Origin, Placed, Scene, StageCounts};
 /// uses them and for tests: segmenting, the fallback drawing, the coarse and refinement stages.
 pub mod stages {
     pub use crate::coarse::draw_coarse;
-    pub use crate::fallback::{FallbackDrawing, fitted_path};
+    pub use crate::fallback::{FallbackDrawing, Style, fitted_path};
+    pub use crate::fills::{RAMP_BYTES, Ramps};
     pub use crate::refine::{Proposer, draw_refinement};
     pub use crate::scene::Scope;
     pub use crate::segmentation::{PIXELS_PER_REGION, Segmented, hierarchy, max_regions};

@@ -125,9 +125,8 @@ pub fn run_with_progress(
     // The stages share one copy of the image and of its regions.
     let target = Arc::new(image.image.clone());
     let Segmented { hierarchy, segmentation, fallback } =
-        Segmented::new(&target, tree, plan.regions, plan.tolerance);
-    let market =
-        plan.traded.then(|| Market::for_drawing(&hierarchy, &segmentation, &fallback, plan.tolerance));
+        Segmented::new(&target, tree, plan.regions, plan.style);
+    let market = plan.traded.then(|| Market::for_drawing(&hierarchy, &segmentation, &fallback, plan.style));
     let mut scene = Scene::new(target, segmentation);
     let superpixels = started.elapsed().as_secs_f64();
 

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use image::Rgb32FImage;
 use superpixel::{Hierarchy, SegmentOptions, Segmentation, SlicError};
 
-use crate::fallback::FallbackDrawing;
+use crate::fallback::{FallbackDrawing, Style};
 
 /// The fewest pixels per region: SLIC cannot place centres closer than 4 × 4 pixels
 /// meaningfully, and one path per pixel would only copy the raster.
@@ -29,21 +29,16 @@ pub struct Segmented {
     pub hierarchy: Hierarchy,
     /// The regions drawn.
     pub segmentation: Arc<Segmentation>,
-    /// Each region's outline in its mean colour over the background, with its rendering.
+    /// Each region's outline in its fill over the background, with its rendering.
     pub fallback: FallbackDrawing,
 }
 
 impl Segmented {
     /// `image` split into `regions` regions of `hierarchy` (made on `image`), with its fallback
-    /// drawing (boundaries fitted within `tolerance` pixels, if given).
-    pub fn new(
-        image: &Arc<Rgb32FImage>,
-        hierarchy: Hierarchy,
-        regions: usize,
-        tolerance: Option<f32>,
-    ) -> Self {
+    /// drawing in `style`.
+    pub fn new(image: &Arc<Rgb32FImage>, hierarchy: Hierarchy, regions: usize, style: Style) -> Self {
         let segmentation = Arc::new(hierarchy.cut(image, regions));
-        let fallback = FallbackDrawing::new(image, &segmentation, tolerance);
+        let fallback = FallbackDrawing::new(image, &segmentation, style);
         Self { hierarchy, segmentation, fallback }
     }
 }
@@ -81,7 +76,8 @@ mod tests {
     fn the_drawn_regions_are_the_trees_cut_and_its_fallback_is_scored_exactly() {
         let image = Arc::new(bands_and_disc());
         let regions = 24;
-        let segmented = Segmented::new(&image, hierarchy(&image, regions, 30.0).unwrap(), regions, None);
+        let segmented =
+            Segmented::new(&image, hierarchy(&image, regions, 30.0).unwrap(), regions, Style::default());
         assert_eq!(segmented.segmentation.regions.len(), regions);
         assert_eq!(segmented.fallback.regions.len(), regions);
         let flat = segmented.segmentation.flat_error(&image);
@@ -91,7 +87,7 @@ mod tests {
         // What merging freely buys where round regions cannot follow the picture: better than
         // the method's own superpixels (plain SLIC at 30).
         let method = Arc::new(superpixel::segment(&image, regions, &SegmentOptions::default()).unwrap());
-        let method_error = FallbackDrawing::new(&image, &method, None).error;
+        let method_error = FallbackDrawing::new(&image, &method, Style::default()).error;
         assert!(
             segmented.fallback.error < 0.5 * method_error,
             "{} against plain SLIC's {method_error}",

@@ -379,6 +379,36 @@ fn regions_are_groups_and_decimals_are_chosen() {
 }
 
 #[test]
+fn ramps_are_written_as_gradients_when_asked_and_unknown_fills_are_refused() {
+    // The fixture's photo is a sum of ramps: its regions fill better with ramps than flat.
+    let fixture = Fixture::new("fills");
+    let photo = fixture.path("photo.png");
+    let draw = |fills: &str| {
+        let out = fixture.path(&format!("{fills}.svg"));
+        let metrics = fixture.path(&format!("{fills}.json"));
+        let args = [photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "20", "--fills", fills];
+        let result = fixture.infer(&[&args[..], &["--metrics", metrics.to_str().unwrap()]].concat());
+        assert!(result.status.success(), "--fills {fills}: {}", text(&result.stderr));
+        parse_svg(&out);
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+        (std::fs::read_to_string(&out).unwrap(), report["psnr"].as_f64().unwrap())
+    };
+    let (flat, flat_psnr) = draw("flat");
+    let (linear, linear_psnr) = draw("linear");
+    assert!(!flat.contains("<linearGradient"), "{flat}");
+    let gradients = linear.matches("<linearGradient").count();
+    assert!(gradients >= 10, "{gradients} gradients: {linear}");
+    assert_eq!(linear.matches("fill=\"url(#").count(), gradients, "each gradient fills one path");
+    assert!(linear_psnr > flat_psnr + 1.0, "linear {linear_psnr} dB against flat {flat_psnr} dB");
+    let out = fixture.path("bogus.svg");
+    let result = fixture.infer(&[photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--fills", "smooth"]);
+    assert_eq!(result.status.code(), Some(2), "{}", text(&result.stderr));
+    assert!(text(&result.stderr).contains("not a fill"), "{}", text(&result.stderr));
+    assert!(!out.exists(), "nothing is written");
+}
+
+#[test]
 fn transparent_pixels_take_the_background_colour() {
     let fixture = Fixture::new("background");
     RgbaImage::from_fn(40, 30, |x, _| Rgba([0, 0, 255, if x < 20 { 0 } else { 255 }]))

@@ -9,7 +9,7 @@ use common::decode::load;
 use common::psnr;
 use image::{Rgb, Rgb32FImage};
 use infer::budget::{CoarseShare, Market, Pricing};
-use infer::stages::{FallbackDrawing, Proposer, Segmented, draw_coarse, draw_refinement, fitted_path};
+use infer::stages::{FallbackDrawing, Proposer, Segmented, Style, draw_coarse, draw_refinement, fitted_path};
 use infer::{
     Context, FinetuneOptions, Limit, Models, Origin, Progress, Scene, finetune, finetune_with_progress,
 };
@@ -45,7 +45,7 @@ fn no_stage_lowers_the_psnr() {
         );
         let score = |scene: &Scene| psnr(&scene.canvas_image(), &image);
 
-        let drawing = FallbackDrawing::new(&image, &segmentation, None);
+        let drawing = FallbackDrawing::new(&image, &segmentation, Style::default());
         let mut fallback = Scene::new(image.clone(), segmentation.clone());
         let no_coarse = CoarseShare { paths: 0, total: 45, market: None };
         draw_coarse(&models.coarse, &context(&models, &device), &mut fallback, drawing.clone(), no_coarse)
@@ -120,7 +120,7 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
             let slic = SegmentOptions { flat_areas: false, ..SegmentOptions::ward(30.0) };
             let tree = Hierarchy::new(&image, slic.over_segment(&image, total - 1).unwrap());
             let Segmented { hierarchy, segmentation, fallback: drawing } =
-                Segmented::new(&image, tree, total - 1, None);
+                Segmented::new(&image, tree, total - 1, Style::default());
             let regions = segmentation.regions.len();
             let alone = psnr(
                 &Scene::drawn(image.clone(), segmentation.clone(), drawing.placed(), drawing.canvas.clone())
@@ -128,7 +128,7 @@ fn paths_bought_with_regions_draw_better_than_the_regions() {
                 &image,
             );
             let mut scene = Scene::new(image.clone(), segmentation);
-            let market = Market { hierarchy: &hierarchy, tolerance: None, pricing };
+            let market = Market { hierarchy: &hierarchy, style: Style::default(), pricing };
             let budget = CoarseShare { paths: 48, total, market: Some(market) };
             draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, budget).unwrap();
             let drawn = psnr(&scene.canvas_image(), &image);
@@ -188,7 +188,7 @@ fn fine_tuning_reports_the_psnr_it_reaches() {
     let regions = segmentation.regions.len();
     let mut scene = Scene::new(image.clone(), segmentation.clone());
     let models = Models::bundled(false, &device).unwrap();
-    let drawing = FallbackDrawing::new(&image, &segmentation, None);
+    let drawing = FallbackDrawing::new(&image, &segmentation, Style::default());
     let no_coarse = CoarseShare { paths: 0, total: regions + 1, market: None };
     draw_coarse(&models.coarse, &context(&models, &device), &mut scene, drawing, no_coarse).unwrap();
     // Fine-tuning moves paths: a drawing of paths alone (the traced regions, each fitted with

@@ -16,7 +16,7 @@ use std::sync::Arc;
 use burn::tensor::Device;
 use common::Loaded;
 use image::Rgb32FImage;
-use infer::stages::{FallbackDrawing, Proposer, Segmented, draw_refinement, hierarchy, max_regions};
+use infer::stages::{FallbackDrawing, Proposer, Segmented, Style, draw_refinement, hierarchy, max_regions};
 use infer::{Context, Job, MAX_PATHS, Models, Network, OPTIMIZER_STEPS, PathBudget, Scene, Split};
 use model::{CoarseModel, ModelConfig, OperatingPoint, PathOptimizer, RefineModel};
 use serde::Serialize;
@@ -97,8 +97,13 @@ impl RefineCheck {
             let extra = ((count as f64 * config.refine_share as f64).ceil() as usize).clamp(1, most - count);
             let tree = hierarchy(&image, count + extra, compactness)
                 .map_err(|source| DataError::ValidationSegment { path: folder.clone(), source })?;
-            let Segmented { hierarchy, segmentation, fallback } = Segmented::new(&image, tree, count, None);
-            let more = FallbackDrawing::new(&image, &Arc::new(hierarchy.cut(&image, count + extra)), None);
+            let Segmented { hierarchy, segmentation, fallback } =
+                Segmented::new(&image, tree, count, Style::default());
+            let more = FallbackDrawing::new(
+                &image,
+                &Arc::new(hierarchy.cut(&image, count + extra)),
+                Style::default(),
+            );
             let regions_db = 10.0 * (fallback.error / more.error.max(f64::MIN_POSITIVE)).log10();
             let scene = Scene::drawn(image, segmentation, fallback.placed(), fallback.canvas);
             let optimizer = PathOptimizer { paths: model.refine_paths, steps: OPTIMIZER_STEPS };
@@ -184,7 +189,7 @@ impl CoarseCheck {
             let budget = count.clamp(2, (most + 1).min(MAX_PATHS));
             let tree = hierarchy(&image, budget - 1, compactness)
                 .map_err(|source| DataError::ValidationSegment { path: folder.clone(), source })?;
-            let regions = Segmented::new(&image, tree, budget - 1, None);
+            let regions = Segmented::new(&image, tree, budget - 1, Style::default());
             let psnr = common::psnr_of_mse(regions.fallback.mse());
             images.push((Loaded::from_image(Arc::unwrap_or_clone(image)), budget, psnr));
         }

@@ -19,7 +19,7 @@ use common::write::{write_atomic, write_png};
 use image::{Rgb32FImage, RgbImage};
 use infer::cli::{Outputs, Planned, colour, plan, stdout_closed, working_size};
 use infer::{
-    BUILT_IN_COARSE, BUILT_IN_REFINE, FinetuneOptions, InvalidJob, Job, Limit, ModelSource, Models,
+    BUILT_IN_COARSE, BUILT_IN_REFINE, Fills, FinetuneOptions, InvalidJob, Job, Limit, ModelSource, Models,
     PathBudget, Progress, Refiner, Report, Split, bundled, run_with_progress,
 };
 use raster::{Backend, SvgOptions};
@@ -102,6 +102,10 @@ struct Args {
     /// Larger gives fewer curves and bytes. Default: each region's traced polygon.
     #[arg(long, allow_hyphen_values = true)]
     tolerance: Option<f32>,
+    /// What regions are filled with: `flat` (each its mean colour), `linear` (a colour ramp
+    /// where one fits), or `auto` (a ramp where it draws better than its bytes would as regions).
+    #[arg(long, default_value = "flat", value_parser = str::parse::<Fills>)]
+    fills: Fills,
     /// The colour transparent pixels are composited over (`#rrggbb`); the SVG is opaque.
     #[arg(long, default_value = "#ffffff", value_parser = colour)]
     background: [f32; 3],
@@ -127,6 +131,7 @@ impl Args {
             finetune: limit.map(|limit| FinetuneOptions { limit, ..FinetuneOptions::default() }),
             svg: SvgOptions { decimals: self.decimals, ..SvgOptions::default() },
             tolerance: self.tolerance,
+            fills: self.fills,
             operating_point: self.operating_point,
             refiner: self.refiner,
             ssim: self.metrics.is_some(),

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
 use infer::Scene;
-use infer::stages::{Segmented, hierarchy, max_regions};
+use infer::stages::{Segmented, Style, hierarchy, max_regions};
 use model::{CropBatch, MIN_REGION_PIXELS, ModelConfig};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -250,7 +250,7 @@ impl DataSource {
         let count = count.min(max_regions(scene.width(), scene.height()));
         let target = Arc::new(scene);
         let tree = hierarchy(&target, count, self.config.compactness)?;
-        let Segmented { segmentation, fallback, .. } = Segmented::new(&target, tree, count, None);
+        let Segmented { segmentation, fallback, .. } = Segmented::new(&target, tree, count, Style::default());
         let drawing = Scene::drawn(target.clone(), segmentation.clone(), fallback.placed(), fallback.canvas);
         let regions = pick_regions(&segmentation, self.config.pick, || drawing.region_errors(), rng);
         let canvas = drawing.canvas_image();
