@@ -36,6 +36,10 @@ pub enum Method {
     OursPaper,
     /// SuperSVG-B with the exact optimizer in E_r's place.
     OursOptimizer,
+    /// SuperSVG-B with every region a ramp fits filled with it (`--fills linear`).
+    OursLinear,
+    /// SuperSVG-B with the ramps that pay for their bytes (`--fills auto`).
+    OursFillsAuto,
     /// The fallback drawing alone.
     Fallback,
     /// vtracer with one knob searched to the budget.
@@ -58,6 +62,8 @@ impl Method {
             Method::OursNoRefine => "SuperSVG-B without E_r (--no-refine)",
             Method::OursPaper => "SuperSVG-B, the paper's inference (--operating-point paper)",
             Method::OursOptimizer => "SuperSVG-B, the exact optimizer in E_r's place (--refiner optimizer)",
+            Method::OursLinear => "SuperSVG-B, regions filled with ramps (--fills linear)",
+            Method::OursFillsAuto => "SuperSVG-B, ramps where they pay (--fills auto)",
             Method::Fallback => "fallback alone (traced regions, mean colour)",
             Method::Vtracer => "vtracer",
             Method::VtracerDefault => "vtracer (default settings)",
@@ -76,6 +82,8 @@ impl Method {
                 | Method::OursNoRefine
                 | Method::OursPaper
                 | Method::OursOptimizer
+                | Method::OursLinear
+                | Method::OursFillsAuto
                 | Method::Fallback
         )
     }
@@ -89,6 +97,8 @@ impl Method {
             Method::OursNoRefine => "no-refine",
             Method::OursPaper => "paper",
             Method::OursOptimizer => "optimizer",
+            Method::OursLinear => "linear",
+            Method::OursFillsAuto => "fills-auto",
             _ => "b",
         };
         match (self, budget) {
@@ -235,7 +245,7 @@ impl Vectorizer for Ours<'_> {
     }
 
     fn sweeps(&self) -> bool {
-        matches!(self.method, Method::OursB | Method::Fallback)
+        matches!(self.method, Method::OursB | Method::Fallback | Method::OursLinear | Method::OursFillsAuto)
     }
 
     fn draw(&self, input: &Input, budget: Budget) -> Result<Option<Drawing>, DrawError> {

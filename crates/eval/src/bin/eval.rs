@@ -22,7 +22,7 @@ use eval::{
     Vectorizer, Vtracer, VtracerSettings, available, command_line, finish, load_models, rate_chart,
     rate_section, render_chart, report, sweep_points,
 };
-use infer::{AutoRule, FinetuneOptions, Job, Limit, OPTIMIZER_STEPS, PathBudget, Refiner, Split};
+use infer::{AutoRule, Fills, FinetuneOptions, Job, Limit, OPTIMIZER_STEPS, PathBudget, Refiner, Split};
 use raster::Backend;
 
 /// What `--peers` can add beside SuperSVG.
@@ -44,6 +44,9 @@ enum Peer {
     /// SuperSVG-B with the exact optimizer proposing in E_r's place: as `infer --paths N
     /// --refiner optimizer` draws it (what E_r's role can reach, for judging a trained E_r).
     Optimizer,
+    /// SuperSVG-B with regions filled with colour ramps: as `infer --paths N --fills linear`
+    /// and `--fills auto` draw it (swept, so the chart compares fills at equal file size).
+    Fills,
 }
 
 /// Evaluate SuperSVG and other vectorizers on a folder of images.
@@ -63,7 +66,7 @@ struct Args {
     out: PathBuf,
     /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
     /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`,
-    /// `IMAGE-paper-500.svg`, `IMAGE-optimizer-500.svg`): the files `infer`
+    /// `IMAGE-paper-500.svg`, `IMAGE-optimizer-500.svg`, `IMAGE-linear-500.svg`, `IMAGE-fills-auto-500.svg`): the files `infer`
     /// writes with the same settings.
     #[arg(long)]
     svgs: Option<PathBuf>,
@@ -85,7 +88,7 @@ struct Args {
     /// Evaluate only the first N images.
     #[arg(long)]
     limit: Option<usize>,
-    /// Rate–distortion sweep: SuperSVG-B (and the fallback alone, when it is a peer) at these
+    /// Rate–distortion sweep: SuperSVG-B (and the fallback alone and the fills, when they are peers) at these
     /// path budgets, comma separated, and vtracer (when it is a peer) over its settings grid.
     /// The report gets a section reading each method at vtracer's file sizes, and the chart
     /// goes beside it (`REPORT-rate.png` and `.svg`).
@@ -242,6 +245,11 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     if args.wants(Peer::Optimizer) {
         let optimized = Job { refiner: Refiner::Optimizer { steps: OPTIMIZER_STEPS }, ..job.clone() };
         methods.push(Box::new(ours(Method::OursOptimizer, &regions_only, optimized)));
+    }
+    if args.wants(Peer::Fills) {
+        for (method, fills) in [(Method::OursLinear, Fills::Linear), (Method::OursFillsAuto, Fills::Auto)] {
+            methods.push(Box::new(ours(method, &models, Job { fills, ..job.clone() })));
+        }
     }
     if use_vtracer {
         methods.push(Box::new(Vtracer { method: Method::Vtracer }));
