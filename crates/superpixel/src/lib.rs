@@ -13,6 +13,6 @@ mod planar;
 mod slic;
 
 pub use crop::{CropOptions, CropTransform, RegionCrop, resample_area};
-pub use merge::{Hierarchy, SegmentOptions, WARD_OVERSEGMENT, segment};
+pub use merge::{Hierarchy, RegionFill, SegmentOptions, WARD_OVERSEGMENT, segment};
 pub use planar::{Chain, Directed, PlanarMap};
 pub use slic::{Region, Segmentation, SlicError, SlicOptions, slic, worst_first};

@@ -3,6 +3,7 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
+use common::Moments;
 use image::Rgb32FImage;
 
 use crate::connectivity::{neighbours4, relabel};
@@ -31,7 +32,7 @@ impl Segmentation {
         if count <= max_regions {
             return self;
         }
-        let mut merging = Merging::new(&self, min_compactness);
+        let mut merging = Merging::new(&self, image, RegionFill::Mean, min_compactness);
         let mut alive = count;
         while alive > max_regions && merging.merge_cheapest().is_some() {
             alive -= 1;
@@ -42,36 +43,89 @@ impl Segmentation {
     }
 }
 
-/// A segmentation and the order in which Ward's criterion merges its regions, down to one:
-/// every region count up to the base's is a cut of it ([`Hierarchy::cut`], what
-/// [`Segmentation::limit_regions`] with no compactness floor gives), and the squared error of
-/// each cut's mean-colour fill is known without cutting or drawing it ([`Hierarchy::flat_error`]).
-/// One over-segmentation then serves every budget.
+/// What a region is taken to be filled with when merges are costed: a merge costs how much it
+/// raises the squared error of that fill (with ramps, plus their price).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum RegionFill {
+    /// Its mean colour (Ward's criterion).
+    #[default]
+    Mean,
+    /// Its mean colour or its best linear colour ramp ([`Moments::linear_fit`]), whichever
+    /// costs less, a ramp costing its error plus `price`: a smooth shading becomes one region,
+    /// not bands of mean colours. The price matters: priced at nothing, a small region fits a
+    /// ramp to anything, and merges chosen on that go astray early (docs/eval/fills.md).
+    Ramp {
+        /// What a ramp costs beside its error (squared RGB error, summed over pixels).
+        price: f64,
+    },
+}
+
+impl RegionFill {
+    /// What the pixels of `moments` cost in this fill.
+    fn cost(self, moments: &Moments) -> f64 {
+        let flat = moments.flat_error();
+        match self {
+            RegionFill::Mean => flat,
+            // A ramp costs at least its price: below it, no ramp need be fitted.
+            RegionFill::Ramp { price } if flat <= price => flat,
+            RegionFill::Ramp { price } => {
+                let reduction = moments.linear_fit().map_or(0.0, |fit| fit.reduction);
+                flat.min((flat - reduction).max(0.0) + price)
+            }
+        }
+    }
+}
+
+/// A segmentation and the order in which its regions are merged, down to one, cheapest first
+/// for a [`RegionFill`]: every region count up to the base's is a cut of it ([`Hierarchy::cut`];
+/// with [`RegionFill::Mean`], what [`Segmentation::limit_regions`] with no compactness floor
+/// gives), and the cost of each cut's fill is known without cutting or drawing it
+/// ([`Hierarchy::fill_error`]). One over-segmentation then serves every budget.
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
     base: Segmentation,
+    /// What the regions are filled with.
+    fill: RegionFill,
     /// The merges in order: (root kept, root merged into it), labels of the base.
     merges: Vec<(u32, u32)>,
-    /// The squared colour error of the mean-colour fill after each number of merges (index 0:
-    /// the base).
+    /// The squared colour error of the fill after each number of merges (index 0: the base).
     errors: Vec<f64>,
 }
 
 impl Hierarchy {
-    /// Merges the regions of `base`, computed on `image`, down to one.
+    /// Merges the regions of `base`, computed on `image`, down to one by Ward's criterion.
     ///
     /// # Panics
     /// If the image size differs.
     pub fn new(image: &Rgb32FImage, base: Segmentation) -> Self {
+        Self::with_fill(image, base, RegionFill::Mean)
+    }
+
+    /// Merges the regions of `base`, computed on `image`, down to one, each merge the one that
+    /// raises the cost of `fill` the least.
+    ///
+    /// # Panics
+    /// If the image size differs.
+    pub fn with_fill(image: &Rgb32FImage, base: Segmentation, fill: RegionFill) -> Self {
         assert_eq!(image.dimensions(), (base.width, base.height), "image and segmentation differ in size");
-        let mut merging = Merging::new(&base, 0.0);
-        let mut errors = vec![base.flat_error(image)];
+        let mut merging = Merging::new(&base, image, fill, 0.0);
+        let mut errors = vec![merging.error.iter().sum()];
         let mut merges = Vec::with_capacity(base.regions.len().saturating_sub(1));
         while let Some((kept, merged, cost)) = merging.merge_cheapest() {
             merges.push((kept, merged));
             errors.push(errors[errors.len() - 1] + cost);
         }
-        Self { base, merges, errors }
+        Self { base, fill, merges, errors }
+    }
+
+    /// What the regions are taken to be filled with.
+    pub fn fill(&self) -> RegionFill {
+        self.fill
+    }
+
+    /// The same base (computed on `image`) merged again for `fill`.
+    pub fn refilled(&self, image: &Rgb32FImage, fill: RegionFill) -> Self {
+        Self::with_fill(image, self.base.clone(), fill)
     }
 
     /// The most regions a cut has: the base's.
@@ -86,8 +140,9 @@ impl Hierarchy {
     }
 
     /// The squared RGB error (summed over pixels) of filling each region of the cut into
-    /// `regions` ([`Hierarchy::cut`]) with its mean colour.
-    pub fn flat_error(&self, regions: usize) -> f64 {
+    /// `regions` ([`Hierarchy::cut`]) with its fill ([`Hierarchy::fill`]; ramps counted with
+    /// their price).
+    pub fn fill_error(&self, regions: usize) -> f64 {
         self.errors[self.merges_for(regions)]
     }
 
@@ -262,9 +317,9 @@ impl PartialOrd for Candidate {
     }
 }
 
-/// Regions being merged: union-find over labels, each root's pixel count, colour sum and
-/// perimeter (pixel edges), the length of border each pair of touching roots shares, and a
-/// queue of merges with at most one live entry per root.
+/// Regions being merged: union-find over labels, each root's pixel count, colour sum, perimeter
+/// (pixel edges), fill error and (for ramps) pixel sums, the length of border each pair of
+/// touching roots shares, and a queue of merges with at most one live entry per root.
 ///
 /// The queue is lazy. Every touching pair is *covered*: some live entry is at most its cost (by
 /// the queue's order). A merge changes only the costs of pairs with the root kept, and that
@@ -282,6 +337,12 @@ struct Merging {
     /// merging's time: a region that grows is costed against all of its neighbours each time).
     mean: Vec<[f64; 3]>,
     perimeter: Vec<f64>,
+    /// What the roots are filled with.
+    fill: RegionFill,
+    /// Each root's pixel sums ([`RegionFill::Ramp`] only; empty otherwise).
+    moments: Vec<Moments>,
+    /// Each root's cost in its fill ([`RegionFill::cost`]).
+    error: Vec<f64>,
     borders: Vec<Borders>,
     /// Each root's live entry in the queue (cost, partner); the queue's other entries are stale.
     queued: Vec<Option<(f64, u32)>>,
@@ -291,8 +352,21 @@ struct Merging {
 }
 
 impl Merging {
-    fn new(segmentation: &Segmentation, min_compactness: f64) -> Self {
+    fn new(segmentation: &Segmentation, image: &Rgb32FImage, fill: RegionFill, min_compactness: f64) -> Self {
         let count = segmentation.regions.len();
+        let (moments, error) = match fill {
+            RegionFill::Mean => (Vec::new(), segmentation.flat_errors(image)),
+            RegionFill::Ramp { .. } => {
+                let width = segmentation.width as usize;
+                let mut moments = vec![Moments::default(); count];
+                for (i, (&label, pixel)) in segmentation.labels.iter().zip(image.pixels()).enumerate() {
+                    moments[label as usize]
+                        .add([(i % width) as f32 + 0.5, (i / width) as f32 + 0.5], pixel.0);
+                }
+                let error = moments.iter().map(|m| fill.cost(m)).collect();
+                (moments, error)
+            }
+        };
         let size = segmentation.regions.iter().map(|r| r.pixels as f64).collect();
         let sum: Vec<[f64; 3]> =
             segmentation.regions.iter().map(|r| r.mean_color.map(|c| c as f64 * r.pixels as f64)).collect();
@@ -320,6 +394,9 @@ impl Merging {
             sum,
             mean,
             perimeter,
+            fill,
+            moments,
+            error,
             borders,
             queued: vec![None; count],
             queue: BinaryHeap::new(),
@@ -348,10 +425,16 @@ impl Merging {
         }
     }
 
-    /// Ward's cost of merging roots `a` and `b`: how much the squared error of the
-    /// mean-colour fill grows.
+    /// The cost of merging roots `a` and `b`: how much the cost of their fill grows (for the
+    /// mean colour, Ward's `n₁n₂/(n₁+n₂)·|c₁ − c₂|²`).
     fn cost(&self, a: u32, b: u32) -> f64 {
         let (ia, ib) = (a as usize, b as usize);
+        if let RegionFill::Ramp { .. } = self.fill {
+            let mut union = self.moments[ia];
+            union += self.moments[ib];
+            // Negative where the union saves a ramp's price more than its error grows.
+            return self.fill.cost(&union) - self.error[ia] - self.error[ib];
+        }
         let (na, nb) = (self.size[ia], self.size[ib]);
         let (ma, mb) = (&self.mean[ia], &self.mean[ib]);
         let difference: f64 = (0..3).map(|c| (ma[c] - mb[c]).powi(2)).sum();
@@ -418,7 +501,7 @@ impl Merging {
                 } else {
                     let (na, nb) = (self.borders[a as usize].0.len(), self.borders[b as usize].0.len());
                     let (kept, merged) = if (nb, a) > (na, b) { (b, a) } else { (a, b) };
-                    self.join(kept, merged);
+                    self.join(kept, merged, cost);
                     return Some((kept, merged, cost));
                 }
             }
@@ -430,9 +513,9 @@ impl Merging {
         }
     }
 
-    /// Merges root `b` into root `a`, then queues `a`'s cheapest merge (only `a`'s pairs
-    /// changed; its neighbours' entries are checked when they come out).
-    fn join(&mut self, a: u32, b: u32) {
+    /// Merges root `b` into root `a` (the merge costing `cost`), then queues `a`'s cheapest
+    /// merge (only `a`'s pairs changed; its neighbours' entries are checked when they come out).
+    fn join(&mut self, a: u32, b: u32, cost: f64) {
         let (ia, ib) = (a as usize, b as usize);
         let shared = self.borders[ia].get(b).unwrap_or(0.0);
         self.parent[ib] = a;
@@ -442,6 +525,13 @@ impl Merging {
             self.sum[ia][c] += self.sum[ib][c];
         }
         self.mean[ia] = self.sum[ia].map(|c| c / self.size[ia]);
+        if let RegionFill::Ramp { .. } = self.fill {
+            let merged = self.moments[ib];
+            self.moments[ia] += merged;
+            self.error[ia] = self.fill.cost(&self.moments[ia]);
+        } else {
+            self.error[ia] += self.error[ib] + cost;
+        }
         self.queued[ib] = None;
         let moved = std::mem::take(&mut self.borders[ib]);
         for &(other, length) in &moved.0 {
@@ -640,7 +730,7 @@ mod tests {
             let labels: Vec<u32> = (0..11 * 9).collect();
             let base = Segmentation::from_labels(&image, labels, 11 * 9);
             for floor in [0.0, 0.3, 0.5, 0.6, 0.7, 0.75] {
-                let mut merging = Merging::new(&base, floor);
+                let mut merging = Merging::new(&base, &image, RegionFill::Mean, floor);
                 let merges: Vec<(u32, u32, f64)> = std::iter::from_fn(|| merging.merge_cheapest()).collect();
                 assert_eq!(merges.len(), 11 * 9 - 1, "down to one region");
                 assert_eq!(merges, brute_force(&base, floor), "{name}, floor {floor}");
@@ -708,5 +798,48 @@ mod tests {
         let noise = Rgb32FImage::from_fn(32, 32, |x, y| image::Rgb([x as f32 / 32.0, y as f32 / 32.0, 0.5]));
         let segments = ward.over_segment(&noise, 4).unwrap().regions.len();
         assert!((16..=64).contains(&segments), "{segments} SLIC segments for 32 asked");
+    }
+
+    #[test]
+    fn ramps_priced_keep_a_smooth_shading_whole_where_ward_bands_it() {
+        // A shading across the left two thirds, two flat blocks on the right: with ramps, three
+        // regions draw it almost exactly (the shading one ramp); Ward's three regions cut the
+        // shading into bands and leave one block merged with it or its neighbour.
+        let image = Rgb32FImage::from_fn(96, 48, |x, y| {
+            if x < 64 {
+                let t = x as f32 / 64.0;
+                Rgb([0.1 + 0.8 * t, 0.3 + 0.4 * t, 0.9 - 0.6 * t])
+            } else if y < 24 {
+                Rgb([0.9, 0.1, 0.2])
+            } else {
+                Rgb([0.1, 0.6, 0.2])
+            }
+        });
+        let base = SegmentOptions::ward(30.0).over_segment(&image, 3).unwrap();
+        assert!(base.regions.len() > 12, "{} base regions", base.regions.len());
+        let ward = Hierarchy::new(&image, base.clone());
+        let price = 0.5;
+        let ramps = ward.refilled(&image, RegionFill::Ramp { price });
+        assert_eq!((ward.fill(), ramps.fill()), (RegionFill::Mean, RegionFill::Ramp { price }));
+        let cut = ramps.cut(&image, 3);
+        assert_eq!(cut.regions.len(), 3);
+        let shading: std::collections::BTreeSet<u32> =
+            (0..64).flat_map(|x| (0..48).map(move |y| (x, y))).map(|(x, y)| cut.label(x, y)).collect();
+        assert_eq!(shading.len(), 1, "the shading is one region");
+        // What is left: SLIC's cells that straddle the blocks' edges, and one ramp's price.
+        assert!(
+            ward.fill_error(3) > 5.0 * ramps.fill_error(3),
+            "Ward's {} against {}",
+            ward.fill_error(3),
+            ramps.fill_error(3)
+        );
+        // The costs are the fills' errors: a cut's, as the tree says, is what each region's
+        // ramp (or mean colour) leaves, plus a price per ramp.
+        let mut sums = vec![Moments::default(); cut.regions.len()];
+        for (i, (&label, pixel)) in cut.labels.iter().zip(image.pixels()).enumerate() {
+            sums[label as usize].add([(i % 96) as f32 + 0.5, (i / 96) as f32 + 0.5], pixel.0);
+        }
+        let direct: f64 = sums.iter().map(|m| RegionFill::Ramp { price }.cost(m)).sum();
+        assert!((direct - ramps.fill_error(3)).abs() < 1e-6 * direct.max(1.0), "{direct} against the tree's");
     }
 }

@@ -316,7 +316,7 @@ fn a_hierarchy_cut_is_the_merge_down_to_its_count_and_knows_its_error() {
         assert_eq!(cut.regions.len(), regions);
         assert_eq!(cut, base.clone().limit_regions(&image, regions, 0.0), "cut at {regions}");
         let error = cut.flat_error(&image);
-        let known = hierarchy.flat_error(regions);
+        let known = hierarchy.fill_error(regions);
         assert!((error - known).abs() <= 1e-3 * error.max(1.0), "{regions}: {known} known, {error} drawn");
         assert!(known >= last, "fewer regions never fit better: {known} after {last}");
         last = known;
