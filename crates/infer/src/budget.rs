@@ -14,10 +14,10 @@ use std::sync::Arc;
 use image::Rgb32FImage;
 use model::OperatingPoint;
 use raster::Path;
-use superpixel::{Hierarchy, Segmentation, SlicError};
+use superpixel::{Hierarchy, RegionFill, Segmentation, SlicError};
 
 use crate::fallback::{FallbackDrawing, Style};
-use crate::fills::Ramps;
+use crate::fills::{RAMP_BYTES, REGION_BYTES, Ramps};
 use crate::job::{AutoRule, Fills, Job, MAX_PATHS, PathBudget, Refiner, Split, Warning};
 use crate::models::Models;
 use crate::scene::{Scene, Tried, paint_with};
@@ -75,10 +75,18 @@ impl BudgetPlan {
             }
         };
         let auto = matches!(job.paths, PathBudget::Auto(_));
-        let ramps = match job.fills {
-            Fills::Flat => Ramps::None,
-            Fills::Linear => Ramps::Every,
-            Fills::Auto => Ramps::Paying { region_worth: region_worth(&tree, regions) },
+        // Regions that may be ramps are merged as such: the same base merged again, a ramp
+        // priced at the bytes it costs, in what a region's bytes take away on Ward's tree.
+        let (ramps, tree) = match job.fills {
+            Fills::Flat => (Ramps::None, tree),
+            fills => {
+                let region_worth = region_worth(&tree, regions);
+                let price = region_worth * RAMP_BYTES / REGION_BYTES;
+                let tree = tree.refilled(image, RegionFill::Ramp { price });
+                let ramps =
+                    if fills == Fills::Linear { Ramps::Every } else { Ramps::Paying { region_worth } };
+                (ramps, tree)
+            }
         };
         let style = Style { tolerance, ramps };
         let plan = Self { paths, auto, point, regions, style, traded: job.regions.is_none() };
@@ -132,7 +140,7 @@ fn region_worth(tree: &Hierarchy, regions: usize) -> f64 {
     if coarser >= regions {
         return 0.0;
     }
-    (tree.flat_error(coarser) - tree.flat_error(regions)).max(0.0) / (regions - coarser) as f64
+    (tree.fill_error(coarser) - tree.fill_error(regions)).max(0.0) / (regions - coarser) as f64
 }
 
 /// The automatic budget measures budgets up to this many paths on one merge tree made for it;
@@ -180,7 +188,7 @@ pub fn auto_budget(
         if paths > tree.0 {
             tree = (max_paths, tree_for(max_paths)?);
         }
-        let value = flat_psnr(tree.1.flat_error(regions_for(paths)), image);
+        let value = flat_psnr(tree.1.fill_error(regions_for(paths)), image);
         ladder.push((paths, value));
         if value >= rule.target_psnr || paths == max_paths || regions_for(paths) == most {
             break;
@@ -197,7 +205,7 @@ pub fn auto_budget(
 }
 
 /// The PSNR (dB) of a flat fill of `image` whose squared RGB error, summed over its pixels, is
-/// `error` ([`Hierarchy::flat_error`]).
+/// `error` ([`Hierarchy::fill_error`]).
 fn flat_psnr(error: f64, image: &Rgb32FImage) -> f64 {
     common::psnr_of_mse(error / (3 * image.width() as usize * image.height() as usize) as f64)
 }
@@ -227,7 +235,7 @@ impl<'a> Market<'a> {
         fallback: &FallbackDrawing,
         style: Style,
     ) -> Self {
-        let pricing = Pricing::for_drawing(hierarchy.flat_error(segmentation.regions.len()), fallback.error);
+        let pricing = Pricing::for_drawing(hierarchy.fill_error(segmentation.regions.len()), fallback.error);
         Self { hierarchy, style, pricing }
     }
 
@@ -261,7 +269,7 @@ impl<'a> Market<'a> {
 /// How a [`Market`] prices merging regions away.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pricing {
-    /// Ward's flat error of the merge tree ([`Hierarchy::flat_error`]): read for free, and
+    /// Ward's flat error of the merge tree ([`Hierarchy::fill_error`]): read for free, and
     /// close to what the drawing loses where the regions' colours vary within them (photos).
     Flat,
     /// Measured by drawing the merged regions: where the drawing's error is mostly its traced
@@ -389,7 +397,7 @@ impl<'a> Prices<'a> {
         if self.market.pricing == Pricing::Flat {
             let hierarchy = self.market.hierarchy;
             let cost =
-                |merges| hierarchy.flat_error(self.regions - merges) - hierarchy.flat_error(self.regions);
+                |merges| hierarchy.fill_error(self.regions - merges) - hierarchy.fill_error(self.regions);
             return (paths <= self.most).then(|| (cost(paths), paths));
         }
         let above = self.points.iter().position(|&(_, _, freed)| freed >= paths)?;
@@ -481,7 +489,7 @@ mod tests {
         let mut ward = Prices::new(&image, &segmentation, flat, regions - 1);
         ward.measure_to_free(&[1e9; 5]);
         assert_eq!(ward.points.len(), 1);
-        let expected = hierarchy.flat_error(regions - 3) - hierarchy.flat_error(regions);
+        let expected = hierarchy.fill_error(regions - 3) - hierarchy.fill_error(regions);
         assert_eq!(ward.to_free(3), Some((expected, 3)));
     }
 
@@ -513,7 +521,7 @@ mod tests {
         // Its tree starts from the four squares (areas of one colour): fewer than the budget's
         // regions, and all it needs.
         assert_eq!(few.hierarchy.most_regions(), 4, "the squares are the tree's base");
-        assert!(few.hierarchy.flat_error(4) < 1e-4, "each square its own colour");
+        assert!(few.hierarchy.fill_error(4) < 1e-4, "each square its own colour");
         assert!(few.flat, "four flat squares are flat art");
         let detailed = blocks(16, 8, 2);
         let many = auto_budget(&detailed, &point, 30.0, &rule).unwrap();

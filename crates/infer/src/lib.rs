@@ -52,7 +52,7 @@ pub use scene::{Origin, Placed, Scene, StageCounts};
 pub mod stages {
     pub use crate::coarse::draw_coarse;
     pub use crate::fallback::{FallbackDrawing, Style, fitted_path};
-    pub use crate::fills::{RAMP_BYTES, Ramps};
+    pub use crate::fills::{RAMP_BYTES, REGION_BYTES, Ramps};
     pub use crate::refine::{Proposer, draw_refinement};
     pub use crate::scene::Scope;
     pub use crate::segmentation::{PIXELS_PER_REGION, Segmented, hierarchy, max_regions};

@@ -81,7 +81,7 @@ mod tests {
         assert_eq!(segmented.segmentation.regions.len(), regions);
         assert_eq!(segmented.fallback.regions.len(), regions);
         let flat = segmented.segmentation.flat_error(&image);
-        let read = segmented.hierarchy.flat_error(regions);
+        let read = segmented.hierarchy.fill_error(regions);
         // (The tree sums its merges' costs in f64 from f32 means: a few parts in a million.)
         assert!((flat - read).abs() <= 1e-5 * flat, "the tree's {read} against the cut's {flat}");
         // What merging freely buys where round regions cannot follow the picture: better than
