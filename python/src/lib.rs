@@ -16,7 +16,7 @@ use burn::tensor::Device;
 use common::decode::{self, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
 use common::outputs::{OutputError, check_output};
 use common::write::write_atomic;
-use infer::{AutoRule, FinetuneOptions, Job, Limit, Models, PathBudget};
+use infer::{AutoRule, Fills, FinetuneOptions, Job, Limit, Models, PathBudget};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -39,6 +39,8 @@ struct Request {
     finetune_secs: Option<f64>,
     /// Long side of the working image.
     size: u32,
+    /// What the regions are filled with.
+    fills: Fills,
     /// Where to write the SVG too.
     out: Option<PathBuf>,
 }
@@ -48,9 +50,11 @@ impl Request {
         paths: Option<usize>,
         finetune_secs: Option<f64>,
         size: u32,
+        fills: &str,
         out: Option<PathBuf>,
         input: Option<&Path>,
     ) -> PyResult<Self> {
+        let fills = fills.parse::<Fills>().map_err(|err| PyValueError::new_err(format!("fills: {err}")))?;
         if let Some(out) = &out {
             check_out(out, input)?;
         }
@@ -65,7 +69,7 @@ impl Request {
                 "finetune_secs {seconds} is not a positive number of seconds"
             )));
         }
-        Ok(Self { paths, finetune_secs, size, out })
+        Ok(Self { paths, finetune_secs, size, fills, out })
     }
 
     fn load_options(&self) -> LoadOptions {
@@ -79,6 +83,7 @@ impl Request {
                 limit: Limit::Seconds(seconds),
                 ..FinetuneOptions::default()
             }),
+            fills: self.fills,
             ..Job::default()
         }
     }
@@ -157,38 +162,40 @@ type Paths = Option<usize>;
 
 /// Vectorizes the image file at `path`. Returns `(svg, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (path, paths, finetune_secs, size, out))]
+#[pyo3(signature = (path, paths, finetune_secs, size, fills, out))]
 fn from_file(
     py: Python<'_>,
     path: PathBuf,
     paths: Paths,
     finetune_secs: Option<f64>,
     size: u32,
+    fills: &str,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
-    Request::new(paths, finetune_secs, size, out, Some(&path))?
+    Request::new(paths, finetune_secs, size, fills, out, Some(&path))?
         .run(py, |options| decode::open(&path, options))
 }
 
 /// Vectorizes an image file's bytes (any format the files may have). Returns `(svg, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (data, paths, finetune_secs, size, out))]
+#[pyo3(signature = (data, paths, finetune_secs, size, fills, out))]
 fn from_bytes(
     py: Python<'_>,
     data: &[u8],
     paths: Paths,
     finetune_secs: Option<f64>,
     size: u32,
+    fills: &str,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
-    Request::new(paths, finetune_secs, size, out, None)?
+    Request::new(paths, finetune_secs, size, fills, out, None)?
         .run(py, |options| decode::decode(data, "<bytes>", options))
 }
 
 /// Vectorizes `height` rows of `width` pixels of `channels` (1, 3 or 4) bytes each, in C order.
 /// Returns `(svg, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (data, width, height, channels, paths, finetune_secs, size, out))]
+#[pyo3(signature = (data, width, height, channels, paths, finetune_secs, size, fills, out))]
 #[allow(clippy::too_many_arguments)] // one per keyword of `supersvg.vectorize`
 fn from_pixels(
     py: Python<'_>,
@@ -199,11 +206,12 @@ fn from_pixels(
     paths: Paths,
     finetune_secs: Option<f64>,
     size: u32,
+    fills: &str,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     let layout = PixelLayout::from_channels(channels)
         .ok_or_else(|| PyValueError::new_err(format!("{channels} channels: an array needs 1, 3 or 4")))?;
-    Request::new(paths, finetune_secs, size, out, None)?
+    Request::new(paths, finetune_secs, size, fills, out, None)?
         .run(py, |options| decode::from_pixels(data, (width, height), layout, "<array>", options))
 }
 

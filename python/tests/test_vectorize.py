@@ -75,6 +75,17 @@ def test_finetune_secs_runs_superSVG_F():
     assert tuned != base
 
 
+def test_fills_draw_ramps_as_gradients_when_asked():
+    flat = supersvg.vectorize(EXAMPLE, paths=40, size=128)
+    linear = supersvg.vectorize(EXAMPLE, paths=40, size=128, fills="linear")
+    assert "<linearGradient" not in flat
+    assert linear.count("<linearGradient") == linear.count('fill="url(#') >= 10
+    with pytest.raises(ValueError, match="not a fill"):
+        supersvg.vectorize(EXAMPLE, fills="smooth")
+    with pytest.raises(ValueError, match="fills"):
+        supersvg.vectorize(EXAMPLE, fills=None)
+
+
 def test_bad_input_is_a_python_exception_naming_the_problem(tmp_path):
     with pytest.raises(ValueError, match="not an image in a known format"):
         supersvg.vectorize(b"plain text, not an image")
