@@ -82,7 +82,7 @@ impl BudgetPlan {
             fills => {
                 let region_worth = region_worth(&tree, regions);
                 let price = region_worth * RAMP_BYTES / REGION_BYTES;
-                let tree = tree.refilled(image, RegionFill::Ramp { price });
+                let tree = tree.refilled(image, RegionFill::Ramp { price }, RAMP_MERGES_FROM * regions);
                 let ramps =
                     if fills == Fills::Linear { Ramps::Every } else { Ramps::Paying { region_worth } };
                 (ramps, tree)
@@ -132,6 +132,11 @@ pub struct CoarseShare<'a> {
 
 /// The smallest budget the automatic ladder starts from: the background and 7 regions.
 const AUTO_FIRST: usize = 8;
+
+/// With ramps, Ward's merges are kept down to this many times the drawn regions and the rest
+/// are merged again knowing that regions may be ramps: below it a ramp rarely pays for its price
+/// (the merges agree), and merging the fine cells again is most of the second tree's time.
+const RAMP_MERGES_FROM: usize = 2;
 
 /// The squared error one region takes away at the cut of `tree` into `regions` regions: the
 /// mean of what the merges down to an eighth fewer regions (at least one) add, a merge each.

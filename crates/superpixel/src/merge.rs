@@ -123,9 +123,11 @@ impl Hierarchy {
         self.fill
     }
 
-    /// The same base (computed on `image`) merged again for `fill`.
-    pub fn refilled(&self, image: &Rgb32FImage, fill: RegionFill) -> Self {
-        Self::with_fill(image, self.base.clone(), fill)
+    /// The cut into `regions` regions (of `image`, which the base was computed on) merged
+    /// again, down to one, for `fill`: its cuts into fewer regions follow `fill`, and none has
+    /// more.
+    pub fn refilled(&self, image: &Rgb32FImage, fill: RegionFill, regions: usize) -> Self {
+        Self::with_fill(image, self.cut(image, regions), fill)
     }
 
     /// The most regions a cut has: the base's.
@@ -819,7 +821,7 @@ mod tests {
         assert!(base.regions.len() > 12, "{} base regions", base.regions.len());
         let ward = Hierarchy::new(&image, base.clone());
         let price = 0.5;
-        let ramps = ward.refilled(&image, RegionFill::Ramp { price });
+        let ramps = ward.refilled(&image, RegionFill::Ramp { price }, base.regions.len());
         assert_eq!((ward.fill(), ramps.fill()), (RegionFill::Mean, RegionFill::Ramp { price }));
         let cut = ramps.cut(&image, 3);
         assert_eq!(cut.regions.len(), 3);
