@@ -281,6 +281,8 @@ fn colour(method: Method) -> usize {
         Method::OursB => 0,
         Method::Fallback => 1,
         Method::Vtracer => 2,
+        Method::OursLinear => 4,
+        Method::OursFillsAuto => 6,
         _ => 3,
     }
 }
