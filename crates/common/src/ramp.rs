@@ -10,6 +10,8 @@
 
 use std::ops::AddAssign;
 
+use image::Rgb32FImage;
+
 /// A colour that changes linearly from `stops[0]` at `start` to `stops[1]` at `end` along the
 /// line between them, constant across it, and padded beyond the ends (SVG's
 /// `spreadMethod="pad"`). Points are in whatever frame the shape it fills uses.
@@ -89,6 +91,20 @@ impl Moments {
             self.cross[c][1] += value * y;
             self.color_squares += value * value;
         }
+    }
+
+    /// The sums of each label's pixels of `image`, `labels` giving every pixel's (row-major, each
+    /// below `count`), at pixel centres (`x + 0.5`, `y + 0.5`): the frame ramps are fitted in.
+    ///
+    /// # Panics
+    /// If a label is `count` or more.
+    pub fn per_label(image: &Rgb32FImage, labels: &[u32], count: usize) -> Vec<Moments> {
+        let width = image.width() as usize;
+        let mut sums = vec![Moments::default(); count];
+        for (i, (&label, pixel)) in labels.iter().zip(image.pixels()).enumerate() {
+            sums[label as usize].add([(i % width) as f32 + 0.5, (i / width) as f32 + 0.5], pixel.0);
+        }
+        sums
     }
 
     /// How many pixels.

@@ -141,7 +141,7 @@ const RAMP_MERGES_FROM: usize = 2;
 /// The squared error one region takes away at the cut of `tree` into `regions` regions: the
 /// mean of what the merges down to an eighth fewer regions (at least one) add, a merge each.
 fn region_worth(tree: &Hierarchy, regions: usize) -> f64 {
-    let coarser = regions.saturating_sub((regions / 8).max(1)).max(tree.fewest_regions()).max(1);
+    let coarser = regions.saturating_sub((regions / 8).max(1)).max(tree.fewest_regions());
     if coarser >= regions {
         return 0.0;
     }
@@ -274,8 +274,9 @@ impl<'a> Market<'a> {
 /// How a [`Market`] prices merging regions away.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pricing {
-    /// Ward's flat error of the merge tree ([`Hierarchy::fill_error`]): read for free, and
-    /// close to what the drawing loses where the regions' colours vary within them (photos).
+    /// The merge tree's error ([`Hierarchy::fill_error`], Ward's where regions are flat): read
+    /// for free, and close to what the drawing loses where the regions' colours vary within
+    /// them (photos).
     Flat,
     /// Measured by drawing the merged regions: where the drawing's error is mostly its traced
     /// outlines' (flat art), which Ward's criterion does not see.

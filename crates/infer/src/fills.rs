@@ -61,10 +61,7 @@ pub(crate) fn region_ramps(
         Ramps::Paying { region_worth } => region_worth * RAMP_BYTES / mean_bytes(outlines, (width, height)),
     };
     let center = |i: usize| [(i % width as usize) as f32 + 0.5, (i / width as usize) as f32 + 0.5];
-    let mut moments = vec![Moments::default(); segmentation.regions.len()];
-    for (i, (&label, pixel)) in segmentation.labels.iter().zip(image.pixels()).enumerate() {
-        moments[label as usize].add(center(i), pixel.0);
-    }
+    let moments = Moments::per_label(image, &segmentation.labels, segmentation.regions.len());
     let fits: Vec<Option<LinearFit>> =
         moments.iter().map(|m| m.linear_fit().filter(|fit| fit.reduction > threshold)).collect();
     // How far each fitted region's pixels reach along its ramp: the ramp's ends.

@@ -109,7 +109,10 @@ impl Hierarchy {
     pub fn with_fill(image: &Rgb32FImage, base: Segmentation, fill: RegionFill) -> Self {
         assert_eq!(image.dimensions(), (base.width, base.height), "image and segmentation differ in size");
         let mut merging = Merging::new(&base, image, fill, 0.0);
-        let mut errors = vec![merging.error.iter().sum()];
+        let mut errors = vec![match fill {
+            RegionFill::Mean => base.flat_error(image),
+            RegionFill::Ramp { .. } => merging.error.iter().sum(),
+        }];
         let mut merges = Vec::with_capacity(base.regions.len().saturating_sub(1));
         while let Some((kept, merged, cost)) = merging.merge_cheapest() {
             merges.push((kept, merged));
@@ -320,7 +323,7 @@ impl PartialOrd for Candidate {
 }
 
 /// Regions being merged: union-find over labels, each root's pixel count, colour sum, perimeter
-/// (pixel edges), fill error and (for ramps) pixel sums, the length of border each pair of
+/// (pixel edges) and (for ramps) pixel sums and cost, the length of border each pair of
 /// touching roots shares, and a queue of merges with at most one live entry per root.
 ///
 /// The queue is lazy. Every touching pair is *covered*: some live entry is at most its cost (by
@@ -341,9 +344,9 @@ struct Merging {
     perimeter: Vec<f64>,
     /// What the roots are filled with.
     fill: RegionFill,
-    /// Each root's pixel sums ([`RegionFill::Ramp`] only; empty otherwise).
+    /// Each root's pixel sums and its cost in its fill ([`RegionFill::cost`]); for
+    /// [`RegionFill::Ramp`] only (Ward's costs need neither), empty otherwise.
     moments: Vec<Moments>,
-    /// Each root's cost in its fill ([`RegionFill::cost`]).
     error: Vec<f64>,
     borders: Vec<Borders>,
     /// Each root's live entry in the queue (cost, partner); the queue's other entries are stale.
@@ -356,19 +359,11 @@ struct Merging {
 impl Merging {
     fn new(segmentation: &Segmentation, image: &Rgb32FImage, fill: RegionFill, min_compactness: f64) -> Self {
         let count = segmentation.regions.len();
-        let (moments, error) = match fill {
-            RegionFill::Mean => (Vec::new(), segmentation.flat_errors(image)),
-            RegionFill::Ramp { .. } => {
-                let width = segmentation.width as usize;
-                let mut moments = vec![Moments::default(); count];
-                for (i, (&label, pixel)) in segmentation.labels.iter().zip(image.pixels()).enumerate() {
-                    moments[label as usize]
-                        .add([(i % width) as f32 + 0.5, (i / width) as f32 + 0.5], pixel.0);
-                }
-                let error = moments.iter().map(|m| fill.cost(m)).collect();
-                (moments, error)
-            }
+        let moments = match fill {
+            RegionFill::Mean => Vec::new(),
+            RegionFill::Ramp { .. } => Moments::per_label(image, &segmentation.labels, count),
         };
+        let error = moments.iter().map(|m| fill.cost(m)).collect();
         let size = segmentation.regions.iter().map(|r| r.pixels as f64).collect();
         let sum: Vec<[f64; 3]> =
             segmentation.regions.iter().map(|r| r.mean_color.map(|c| c as f64 * r.pixels as f64)).collect();
@@ -503,7 +498,7 @@ impl Merging {
                 } else {
                     let (na, nb) = (self.borders[a as usize].0.len(), self.borders[b as usize].0.len());
                     let (kept, merged) = if (nb, a) > (na, b) { (b, a) } else { (a, b) };
-                    self.join(kept, merged, cost);
+                    self.join(kept, merged);
                     return Some((kept, merged, cost));
                 }
             }
@@ -515,9 +510,9 @@ impl Merging {
         }
     }
 
-    /// Merges root `b` into root `a` (the merge costing `cost`), then queues `a`'s cheapest
-    /// merge (only `a`'s pairs changed; its neighbours' entries are checked when they come out).
-    fn join(&mut self, a: u32, b: u32, cost: f64) {
+    /// Merges root `b` into root `a`, then queues `a`'s cheapest merge (only `a`'s pairs
+    /// changed; its neighbours' entries are checked when they come out).
+    fn join(&mut self, a: u32, b: u32) {
         let (ia, ib) = (a as usize, b as usize);
         let shared = self.borders[ia].get(b).unwrap_or(0.0);
         self.parent[ib] = a;
@@ -531,8 +526,6 @@ impl Merging {
             let merged = self.moments[ib];
             self.moments[ia] += merged;
             self.error[ia] = self.fill.cost(&self.moments[ia]);
-        } else {
-            self.error[ia] += self.error[ib] + cost;
         }
         self.queued[ib] = None;
         let moved = std::mem::take(&mut self.borders[ib]);
@@ -837,10 +830,7 @@ mod tests {
         );
         // The costs are the fills' errors: a cut's, as the tree says, is what each region's
         // ramp (or mean colour) leaves, plus a price per ramp.
-        let mut sums = vec![Moments::default(); cut.regions.len()];
-        for (i, (&label, pixel)) in cut.labels.iter().zip(image.pixels()).enumerate() {
-            sums[label as usize].add([(i % 96) as f32 + 0.5, (i / 96) as f32 + 0.5], pixel.0);
-        }
+        let sums = Moments::per_label(&image, &cut.labels, cut.regions.len());
         let direct: f64 = sums.iter().map(|m| RegionFill::Ramp { price }.cost(m)).sum();
         assert!((direct - ramps.fill_error(3)).abs() < 1e-6 * direct.max(1.0), "{direct} against the tree's");
     }
