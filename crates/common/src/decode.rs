@@ -213,7 +213,7 @@ pub fn decode(bytes: &[u8], input: &str, options: &LoadOptions) -> Result<Loaded
 
 /// `read`'s image with the seconds it took.
 fn timed(read: impl FnOnce() -> Result<Loaded, DecodeProblem>) -> Result<Loaded, DecodeProblem> {
-    let started = std::time::Instant::now();
+    let started = web_time::Instant::now();
     read().map(|loaded| Loaded { seconds: started.elapsed().as_secs_f64(), ..loaded })
 }
 
@@ -349,7 +349,7 @@ pub fn from_pixels(
     if u64::from(width) * u64::from(height) > MAX_DECODED_PIXELS {
         return Err(fail(DecodeProblem::TooLarge { width, height }));
     }
-    let started = std::time::Instant::now();
+    let started = web_time::Instant::now();
     let buffer = pixels.to_vec();
     let decoded = match layout {
         PixelLayout::Grey => image::GrayImage::from_raw(width, height, buffer).map(DynamicImage::ImageLuma8),

@@ -3,7 +3,7 @@
 //! for with a region ([`Market`]), so E_c draws only where it beats spending the same paths on
 //! regions.
 
-use std::time::Instant;
+use web_time::Instant;
 
 use model::{CheckpointError, CoarseModel, CropBatch, crop_to_image};
 use raster::Path;

@@ -6,7 +6,7 @@
 //! canvas and colours and opacity in [0, 1]; the best state seen is kept.
 
 use std::ops::ControlFlow;
-use std::time::Instant;
+use web_time::Instant;
 
 use common::psnr_of_mse;
 use raster::{PARAMS, Path, PathAdam, Shape, Window};

@@ -10,7 +10,7 @@
 //! paths in E_c's painter's order) instead of dropping the last regions' paths wholesale.
 
 use std::sync::Arc;
-use std::time::Instant;
+use web_time::Instant;
 
 use image::Rgb32FImage;
 use model::{CropBatch, canvas_cells, crop_to_image};

@@ -3,7 +3,7 @@
 //! also buys paths with regions where they pay ([`crate::budget::Market`]). The paths are E_r's,
 //! or the exact optimizer's in its place ([`Proposer`]): what a trained E_r could add at best.
 
-use std::time::Instant;
+use web_time::Instant;
 
 use model::{CheckpointError, CropBatch, PathOptimizer, RefineModel, canvas_cells, crop_to_image};
 use raster::{Path, Shape};
