@@ -18,21 +18,18 @@ use infer::{
 use serde::Deserialize;
 use wasm_bindgen::prelude::*;
 
-/// What the page's controls ask for, as JSON: the `infer` flags of the same names.
+/// What the page's controls ask for, as JSON: the `infer` flags of the same names (a missing key
+/// is the flag's default).
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Settings {
     /// `--paths`: a number of paths, or `auto` (default 500).
-    #[serde(default)]
     pub paths: Option<String>,
     /// `--tolerance`: curves that stray at most this many pixels (default: traced polygons).
-    #[serde(default)]
     pub tolerance: Option<f32>,
     /// `--fills`: `flat`, `linear` or `auto` (default flat).
-    #[serde(default)]
     pub fills: Option<String>,
     /// `--finetune-secs`: SuperSVG-F for this many seconds after B (default: none).
-    #[serde(default)]
     pub finetune_secs: Option<f64>,
 }
 
@@ -168,19 +165,15 @@ mod tests {
 
     #[test]
     fn bad_settings_name_what_is_wrong() {
-        let message = |json: &str| Settings::from_json(json).and_then(|s| s.job()).unwrap_err().to_string();
-        assert!(
-            message(r#"{"paths": "many"}"#).starts_with("paths: "),
-            "{}",
-            message(r#"{"paths": "many"}"#)
-        );
-        assert!(message(r#"{"fills": "radial"}"#).starts_with("fills: "));
-        assert!(
-            message(r#"{"tolerance": 99}"#).starts_with("tolerance: "),
-            "{}",
-            message(r#"{"tolerance": 99}"#)
-        );
-        assert!(message(r#"{"colours": 3}"#).contains("unknown field `colours`"));
+        for (json, expected) in [
+            (r#"{"paths": "many"}"#, "paths: "),
+            (r#"{"fills": "radial"}"#, "fills: "),
+            (r#"{"tolerance": 99}"#, "tolerance: "),
+            (r#"{"colours": 3}"#, "settings: unknown field `colours`"),
+        ] {
+            let message = Settings::from_json(json).and_then(|s| s.job()).unwrap_err().to_string();
+            assert!(message.starts_with(expected), "{json}: {message}");
+        }
     }
 
     #[test]

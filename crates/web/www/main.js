@@ -90,6 +90,7 @@ async function pick(file) {
     return;
   }
   image = { name: file.name, bytes: await file.arrayBuffer() };
+  URL.revokeObjectURL($("original").src);
   $("original").src = URL.createObjectURL(file);
   $("drawing").removeAttribute("src");
   $("download").hidden = true;
