@@ -5,6 +5,24 @@
 use common::Ramp;
 use tiny_skia::{Color, GradientStop, LinearGradient, Point, Shader, SpreadMode, Transform};
 
+/// Parameters of a [`Ramp`] as fine-tuning moves it: `start`, `end` (unit square), then the two
+/// stops' RGB.
+pub const RAMP_PARAMS: usize = 10;
+/// The first [`RAMP_PARAMS`] that are coordinates (`start`, `end`); the rest are colours.
+pub const RAMP_COORDS: usize = 4;
+
+/// `ramp` in the [`RAMP_PARAMS`] layout.
+pub fn ramp_params(ramp: &Ramp) -> [f32; RAMP_PARAMS] {
+    let [[x0, y0], [x1, y1]] = [ramp.start, ramp.end];
+    let [[r0, g0, b0], [r1, g1, b1]] = ramp.stops;
+    [x0, y0, x1, y1, r0, g0, b0, r1, g1, b1]
+}
+
+/// The ramp of [`ramp_params`]' layout.
+pub fn ramp_from_params(p: &[f32; RAMP_PARAMS]) -> Ramp {
+    Ramp { start: [p[0], p[1]], end: [p[2], p[3]], stops: [[p[4], p[5], p[6]], [p[7], p[8], p[9]]] }
+}
+
 /// A shape's paint, in the frame of its outline (the unit square of a canvas). A ramp's end
 /// points are in that square too, and its lines of one colour are perpendicular to it on the
 /// canvas, in pixels, as SVG draws a gradient in user space: the square is stretched to the

@@ -18,13 +18,13 @@ mod shapes;
 mod soft;
 mod svg;
 
-pub use adam::PathAdam;
+pub use adam::{Adam, PathAdam, RampAdam};
 pub use common::Ramp;
 pub use decimals::{Decimals, MAX_DECIMALS};
 pub use device::{Backend, BackendError};
 pub use exact::{coverage_exact, coverage_exact_window, paint_exact, render_exact, skia_outline};
 pub use exact_batch::ExactBatch;
-pub use fill::Fill;
+pub use fill::{Fill, RAMP_COORDS, RAMP_PARAMS, ramp_from_params, ramp_params};
 pub use fit::{fit_curve, fit_outline};
 pub use geometry::{bernstein, cubic_point};
 pub use gradient::Window;

@@ -232,6 +232,21 @@ impl Outline {
         Self::new(vec![Contour { start: corners[0], segments }], fill, alpha)
     }
 
+    /// `path`'s outline (its four cubics) filled with `fill`: a path that paints something other
+    /// than one colour, as fine-tuning returns a ramped region. `None` when a number is not finite.
+    pub fn from_path(path: &Path, fill: impl Into<Fill>) -> Option<Self> {
+        if !path.is_finite() {
+            return None;
+        }
+        let segments = (0..SEGMENTS)
+            .map(|j| {
+                let [_, c1, c2, end] = path.segment(j);
+                Segment::Cubic(c1, c2, end)
+            })
+            .collect();
+        Self::new(vec![Contour { start: path.points[0], segments }], fill, path.alpha)
+    }
+
     /// Its contours.
     pub fn contours(&self) -> &[Contour] {
         &self.contours
