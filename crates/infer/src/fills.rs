@@ -101,11 +101,13 @@ mod tests {
     use std::sync::Arc;
 
     use image::Rgb;
-    use raster::{Fill, Shape};
+    use raster::{Fill, Filled, Outline, Shape};
     use superpixel::{SlicOptions, slic};
 
     use super::*;
     use crate::fallback::{FallbackDrawing, Style};
+    use crate::finetune::{FinetuneOptions, Limit, finetune};
+    use crate::scene::Scene;
 
     /// A sky (a vertical ramp) over flat ground with a flat disc on it.
     fn sky_and_ground() -> Rgb32FImage {
@@ -142,6 +144,40 @@ mod tests {
         // horizon or the disc's edge.
         assert!(ramps(&linear) >= 3, "{} ramps", ramps(&linear));
         assert!(linear.error < 0.6 * flat.error, "{} against flat {}", linear.error, flat.error);
+    }
+
+    /// SuperSVG-F moves a ramp with its outline: starting from the sky's ramps turned around,
+    /// it draws better and the sky's regions leave it ramped, their ramps moved.
+    #[test]
+    fn fine_tuning_moves_ramps() {
+        let image = Arc::new(sky_and_ground());
+        let segmentation =
+            Arc::new(slic(&image, &SlicOptions { n_segments: 12, ..Default::default() }).unwrap());
+        let linear =
+            FallbackDrawing::new(&image, &segmentation, Style { tolerance: None, ramps: Ramps::Every });
+        let turned = |shape: &Shape| match (shape, shape.fill()) {
+            (Shape::Outline(outline), Fill::Linear(ramp)) => {
+                let ramp = raster::Ramp { stops: [ramp.stops[1], ramp.stops[0]], ..ramp };
+                let mut outline: Outline = (**outline).clone();
+                outline.fill = Fill::Linear(ramp);
+                Shape::from(outline)
+            }
+            _ => shape.clone(),
+        };
+        let mut scene = Scene::drawn(image.clone(), segmentation, linear.placed(), linear.canvas.clone());
+        let start: Vec<Shape> = scene.scene().iter().map(turned).collect();
+        scene.set_shapes(&start);
+        let before = scene.total_error();
+        finetune(&mut scene, &FinetuneOptions { limit: Limit::Steps(60), ..FinetuneOptions::default() });
+        assert!(scene.total_error() < 0.5 * before, "{} against {before}", scene.total_error());
+        let fills: Vec<Fill> = scene.scene().iter().map(Shape::fill).collect();
+        let ramped = fills.iter().filter(|fill| matches!(fill, Fill::Linear(_))).count();
+        assert_eq!(ramped, ramps(&linear));
+        let moved = start
+            .iter()
+            .zip(&fills)
+            .filter(|(shape, fill)| matches!(fill, Fill::Linear(_)) && shape.fill() != **fill);
+        assert_eq!(moved.count(), ramped);
     }
 
     #[test]

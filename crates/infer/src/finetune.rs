@@ -9,7 +9,10 @@ use std::ops::ControlFlow;
 use web_time::Instant;
 
 use common::psnr_of_mse;
-use raster::{PARAMS, Path, PathAdam, Shape, Window};
+use raster::{
+    Fill, Filled, Outline, PARAMS, Path, PathAdam, RAMP_PARAMS, Ramp, RampAdam, Shape, Window,
+    ramp_from_params, ramp_params,
+};
 
 use crate::fallback::fitted_path;
 use crate::scene::Scene;
@@ -86,9 +89,22 @@ pub fn finetune_with_progress(
         Shape::Outline(outline) => fitted_path(outline, (width, height)),
     };
     let Some(start) = original.iter().map(as_path).collect::<Option<Vec<Path>>>() else { return 0 };
+    // Ramps move with their outlines; a flat path's slot stays empty and still.
+    let start_ramps: Vec<Option<Ramp>> = original
+        .iter()
+        .map(|shape| match shape.fill() {
+            Fill::Linear(ramp) => Some(ramp),
+            Fill::Solid(_) => None,
+        })
+        .collect();
     let mut params: Vec<[f32; PARAMS]> = start.iter().map(|path| path.to_params()).collect();
+    let mut ramp_values: Vec<[f32; RAMP_PARAMS]> =
+        start_ramps.iter().map(|ramp| ramp.as_ref().map_or([0.0; RAMP_PARAMS], ramp_params)).collect();
     let mut adam = PathAdam::new(params.len());
-    let mut best = (f64::INFINITY, start);
+    let ramped: Vec<bool> = start_ramps.iter().map(Option::is_some).collect();
+    let any_ramp = ramped.contains(&true);
+    let mut ramp_adam = RampAdam::new(ramp_values.len());
+    let mut best = (f64::INFINITY, start, start_ramps);
     let total_steps = match options.limit {
         Limit::Steps(steps) => Some(steps),
         Limit::Seconds(_) => None,
@@ -102,17 +118,26 @@ pub fn finetune_with_progress(
                 Limit::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
             };
         let paths: Vec<Path> = params.iter().map(Path::from_params).collect();
+        let ramps: Vec<Option<Ramp>> = ramp_values
+            .iter()
+            .zip(&ramped)
+            .map(|(values, &ramped)| ramped.then(|| ramp_from_params(values)))
+            .collect();
         if done {
-            if window.l2(&paths) < best.0 {
-                best.1 = paths;
+            if window.l2_ramped(&paths, &ramps) < best.0 {
+                (best.1, best.2) = (paths, ramps);
             }
             break;
         }
-        let (loss, gradients) = window.l2_gradient(&paths);
+        let (loss, gradients, ramp_gradients) = window.l2_gradient_ramped(&paths, &ramps);
         if loss < best.0 {
-            best = (loss, paths);
+            best = (loss, paths, ramps);
         }
-        adam.step((options.lr_points, options.lr_colors), &mut params, &gradients);
+        let rates = (options.lr_points, options.lr_colors);
+        adam.step(rates, &mut params, &gradients);
+        if any_ramp {
+            ramp_adam.step(rates, &mut ramp_values, &ramp_gradients);
+        }
         steps += 1;
         let progress = Progress {
             seconds: started.elapsed().as_secs_f64(),
@@ -124,7 +149,16 @@ pub fn finetune_with_progress(
     }
     if steps > 0 {
         let before = scene.total_error();
-        scene.set_shapes(&best.1.into_iter().map(Shape::from).collect::<Vec<_>>());
+        let shapes: Vec<Shape> = best
+            .1
+            .into_iter()
+            .zip(best.2)
+            .map(|(path, ramp)| match ramp.and_then(|ramp| Outline::from_path(&path, ramp)) {
+                Some(outline) => Shape::from(outline),
+                None => Shape::from(path),
+            })
+            .collect();
+        scene.set_shapes(&shapes);
         if scene.total_error() > before {
             scene.set_shapes(&original);
         }
