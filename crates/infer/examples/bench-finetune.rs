@@ -5,8 +5,9 @@
 //!  [--lr-points X] [--lr-colors Y]`
 //!
 //! Prints one line per budget, then, last, one JSON line: `steps_per_s` and `ms_per_step` (of
-//! the 10 s run; a step is one Adam step of every path), `psnr_b` and `psnr_after` (seconds →
-//! PSNR of the exact rendering).
+//! the 10 s run; a step is one Adam step of every path), `psnr_b`, `psnr_start` (the drawing F
+//! starts from: B's outlines fitted with one path each, before any step) and `psnr_after`
+//! (seconds → PSNR of the exact rendering; B's when F's best is worse).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -15,7 +16,9 @@ use burn::tensor::Device;
 use clap::Parser;
 use common::decode::load;
 use common::psnr;
-use infer::{FinetuneOptions, Job, Limit, Models, PathBudget, finetune, run};
+use std::ops::ControlFlow;
+
+use infer::{FinetuneOptions, Job, Limit, Models, PathBudget, finetune, finetune_with_progress, run};
 
 /// Time SuperSVG-F on one image.
 #[derive(Parser, Debug)]
@@ -49,6 +52,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         run(&models, &loaded, &Job { paths: PathBudget::Count(args.paths), ..Job::default() }, &device)?;
     let psnr_b = drawn.report.psnr;
     println!("SuperSVG-B: {} paths, {psnr_b:.2} dB", drawn.scene.len());
+    // The first step's report holds the error of the state before it, the fitted start (the
+    // last report, after the stop, is of the scene kept).
+    let mut psnr_start = f64::NAN;
+    finetune_with_progress(
+        &mut drawn.scene.clone(),
+        &FinetuneOptions { limit: Limit::Steps(1), ..FinetuneOptions::default() },
+        &mut |progress| {
+            if psnr_start.is_nan() {
+                psnr_start = progress.psnr;
+            }
+            ControlFlow::Break(())
+        },
+    );
+    println!("F starts from {psnr_start:.2} dB (each outline fitted with one path)");
     let mut after = serde_json::Map::new();
     let mut rate = (0.0, 0.0);
     for seconds in SECONDS {
@@ -74,6 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "steps_per_s": rate.0,
         "ms_per_step": rate.1,
         "psnr_b": psnr_b,
+        "psnr_start": psnr_start,
         "psnr_after": after,
     });
     println!("{line}");
