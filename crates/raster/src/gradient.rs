@@ -907,9 +907,8 @@ mod tests {
                 params[index] += delta;
                 window.l2_ramped(&[path], &[Some(ramp_from_params(&params))]) as f32
             };
-            for index in 0..RAMP_PARAMS {
+            for (index, &analytic) in ramp_gradient[0].iter().enumerate() {
                 let numeric = (loss_at(index, 1e-3) - loss_at(index, -1e-3)) / 2e-3;
-                let analytic = ramp_gradient[0][index];
                 assert!(
                     (numeric - analytic).abs() < 1e-4 + 0.02 * analytic.abs(),
                     "{index}: {numeric} vs {analytic}"
