@@ -9,6 +9,7 @@
 //! starts from: B's outlines fitted with one path each, before any step) and `psnr_after`
 //! (seconds → PSNR of the exact rendering; B's when F's best is worse).
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -16,8 +17,6 @@ use burn::tensor::Device;
 use clap::Parser;
 use common::decode::load;
 use common::psnr;
-use std::ops::ControlFlow;
-
 use infer::{FinetuneOptions, Job, Limit, Models, PathBudget, finetune, finetune_with_progress, run};
 
 /// Time SuperSVG-F on one image.

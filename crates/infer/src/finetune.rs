@@ -43,10 +43,9 @@ const WHITE: [f32; 3] = [1.0; 3];
 
 /// Every this many steps the best state so far is drawn as the SVG shows it. The window
 /// composites in f32, the SVG's renderers in 8 bits a layer: where translucent paths stack
-/// deep, at the PSNRs of flat art (past 55 dB), the two part, and the window's best can draw
-/// worse than an earlier state (an emoji at 500 paths: 61.3 dB after 3000 steps, its window's
-/// best after 4000 below B's 54.0). Checking by steps keeps a given number of steps
-/// reproducible; a check costs one painting of the scene.
+/// deep, at the PSNRs of flat art, the two part, and the window's best can draw worse than an
+/// earlier state, even worse than B (measured in docs/eval/finetune.md). Checking by steps
+/// keeps a given number of steps reproducible; a check costs one painting of the scene.
 const CHECK_EVERY: usize = 100;
 
 impl Default for FinetuneOptions {
