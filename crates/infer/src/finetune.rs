@@ -1,8 +1,8 @@
-//! SuperSVG-F: optimizing every path of a result jointly against the image.
+//! SuperSVG-F: optimizing every shape of a result jointly against the image.
 //!
-//! All paths at once, as the reference does (Adam on plain L2 over the whole image), on the
+//! All shapes at once, as the reference does (Adam on plain L2 over the whole image), on the
 //! exact rendering and its gradient from [`raster::Window`]: a step costs the pixels of each
-//! path's own box (bands of rows in parallel), not paths × pixels. Coordinates stay in the
+//! shape's own box (bands of rows in parallel), not shapes × pixels. Coordinates stay in the
 //! canvas and colours and opacity in [0, 1]; the best state seen is kept, judged as the SVG
 //! shows it.
 
@@ -11,7 +11,7 @@ use web_time::Instant;
 
 use common::psnr_of_mse;
 use raster::{
-    Fill, Filled, Outline, PARAMS, Path, PathAdam, RAMP_PARAMS, Ramp, RampAdam, Shape, Window,
+    Decimals, Fill, Filled, FlatAdam, Outline, Path, RAMP_COORDS, RAMP_PARAMS, Shape, ShapeGradient, Window,
     ramp_from_params, ramp_params,
 };
 
@@ -32,14 +32,22 @@ pub enum Limit {
 pub struct FinetuneOptions {
     /// When to stop.
     pub limit: Limit,
-    /// Adam learning rate of the control points (in the unit square of the image).
+    /// Adam learning rate of a path's control points (in the unit square of the image).
     pub lr_points: f32,
+    /// Adam learning rate of the points of an outline moved as drawn ([`starting_outlines`]):
+    /// finer than a path's, whose four cubics span a region, since a traced outline has a
+    /// point every pixel or few, which a path's step would throw back and forth.
+    pub lr_outline_points: f32,
     /// Adam learning rate of colours and opacity.
     pub lr_colors: f32,
 }
 
 /// What the scene is painted over (as [`Scene`] scores it).
 const WHITE: [f32; 3] = [1.0; 3];
+
+/// [`FinetuneOptions::lr_outline_points`]' default: about a tenth of a pixel a step at 512 px
+/// (the best of 1e-4, 2e-4 and 3e-4 on the emoji in docs/eval/finetune.md).
+const LR_OUTLINE: f32 = 2e-4;
 
 /// Every this many steps the best state so far is drawn as the SVG shows it. The window
 /// composites in f32, the SVG's renderers in 8 bits a layer: where translucent paths stack
@@ -49,10 +57,11 @@ const WHITE: [f32; 3] = [1.0; 3];
 const CHECK_EVERY: usize = 100;
 
 impl Default for FinetuneOptions {
-    /// 100 steps; points at 1e-3 (about half a pixel a step at 512 px, the reference's rate)
-    /// and colours at 3e-2, the best of the sweep in docs/method.md.
+    /// 100 steps; a path's points at 1e-3 (about half a pixel a step at 512 px, the
+    /// reference's rate) and colours at 3e-2, the best of the sweep in docs/method.md; an
+    /// outline's points at [`LR_OUTLINE`].
     fn default() -> Self {
-        Self { limit: Limit::Steps(100), lr_points: 1e-3, lr_colors: 3e-2 }
+        Self { limit: Limit::Steps(100), lr_points: 1e-3, lr_outline_points: LR_OUTLINE, lr_colors: 3e-2 }
     }
 }
 
@@ -69,12 +78,12 @@ pub struct Progress {
     pub psnr: f64,
 }
 
-/// Fine-tunes every path of `scene` against its image. Outlines (the fallback's regions)
-/// start as their outlines fitted with one path ([`fitted_path`]), which only approximates
-/// them. The scene ends in the state, of those checked (every [`CHECK_EVERY`] steps and the
-/// last best), that the exact renderer draws best; if none beats the scene as it was, it keeps
-/// its old shapes, as it does when no step is taken. Returns the number of optimizer steps
-/// taken (0 when a polygon cannot be fitted).
+/// Fine-tunes every shape of `scene` against its image: every point, colour (or ramp) and
+/// opacity. The regions' outlines move as drawn or each fitted with one path, whichever writes
+/// less ([`starting_outlines`]). The scene ends in the state, of those checked (every
+/// [`CHECK_EVERY`] steps and the last best), that the exact renderer draws best; if none beats
+/// the scene as it was, it keeps its old shapes, as it does when no step is taken. Returns the
+/// number of optimizer steps taken (0 when the scene has nothing to move).
 pub fn finetune(scene: &mut Scene, options: &FinetuneOptions) -> usize {
     finetune_with_progress(scene, options, &mut |_| ControlFlow::Continue(()))
 }
@@ -93,32 +102,17 @@ pub fn finetune_with_progress(
     let canvas: Vec<f32> = WHITE.iter().flat_map(|&v| std::iter::repeat_n(v, target.len() / 3)).collect();
     let Some(window) = Window::new(width, height, canvas, target) else { return 0 };
     let original = scene.scene();
-    let as_path = |shape: &Shape| match shape {
-        Shape::Path(path) => Some(*path),
-        Shape::Outline(outline) => fitted_path(outline, (width, height)),
-    };
-    let Some(start) = original.iter().map(as_path).collect::<Option<Vec<Path>>>() else { return 0 };
-    // Ramps move with their outlines; a flat path's slot stays empty and still.
-    let start_ramps: Vec<Option<Ramp>> = original
-        .iter()
-        .map(|shape| match shape.fill() {
-            Fill::Linear(ramp) => Some(ramp),
-            Fill::Solid(_) => None,
-        })
-        .collect();
-    let mut params: Vec<[f32; PARAMS]> = start.iter().map(|path| path.to_params()).collect();
-    let mut ramp_values: Vec<[f32; RAMP_PARAMS]> =
-        start_ramps.iter().map(|ramp| ramp.as_ref().map_or([0.0; RAMP_PARAMS], ramp_params)).collect();
-    let mut adam = PathAdam::new(params.len());
-    let ramped: Vec<bool> = start_ramps.iter().map(Option::is_some).collect();
-    let any_ramp = ramped.contains(&true);
-    let mut ramp_adam = RampAdam::new(ramp_values.len());
-    let mut best = (f64::INFINITY, start, start_ramps);
+    let Some((start, was_path)) = starting_outlines(&original, (width, height)) else { return 0 };
+    let layout = Layout::of(&start);
+    let mut params = layout.params(&start);
+    let rates = layout.rates(options, &was_path);
+    let mut adam = FlatAdam::new(params.len());
+    let mut best = (f64::INFINITY, start);
     // The best state as the SVG shows it: its error and shapes (none: the scene as it was).
     let mut kept: (f64, Option<Vec<Shape>>) = (scene.total_error(), None);
     let mut trial = scene.clone();
-    let mut check = |paths: &[Path], ramps: &[Option<Ramp>], kept: &mut (f64, Option<Vec<Shape>>)| {
-        let shapes = shapes_of(paths, ramps);
+    let mut check = |outlines: &[Outline], kept: &mut (f64, Option<Vec<Shape>>)| {
+        let shapes = shapes_of(outlines, &was_path);
         trial.set_shapes(&shapes);
         let error = trial.total_error();
         if error < kept.0 {
@@ -138,31 +132,23 @@ pub fn finetune_with_progress(
                 Limit::Steps(total) => steps >= total,
                 Limit::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
             };
-        let paths: Vec<Path> = params.iter().map(Path::from_params).collect();
-        let ramps: Vec<Option<Ramp>> = ramp_values
-            .iter()
-            .zip(&ramped)
-            .map(|(values, &ramped)| ramped.then(|| ramp_from_params(values)))
-            .collect();
+        let outlines = layout.outlines(&best.1, &params);
         if done {
-            if window.l2_ramped(&paths, &ramps) < best.0 {
-                (best.1, best.2, unchecked) = (paths, ramps, true);
+            let loss = window.l2_outlines(&outlines);
+            if loss < best.0 {
+                (best, unchecked) = ((loss, outlines), true);
             }
             break;
         }
-        let (loss, gradients, ramp_gradients) = window.l2_gradient_ramped(&paths, &ramps);
+        let (loss, gradients) = window.l2_gradient_outlines(&outlines);
         if loss < best.0 {
-            (best, unchecked) = ((loss, paths, ramps), true);
+            (best, unchecked) = ((loss, outlines), true);
         }
         if unchecked && steps % CHECK_EVERY == 0 && steps > 0 {
-            check(&best.1, &best.2, &mut kept);
+            check(&best.1, &mut kept);
             unchecked = false;
         }
-        let rates = (options.lr_points, options.lr_colors);
-        adam.step(rates, &mut params, &gradients);
-        if any_ramp {
-            ramp_adam.step(rates, &mut ramp_values, &ramp_gradients);
-        }
+        adam.step(&rates, &mut params, &layout.gradient(&gradients));
         steps += 1;
         let progress = Progress {
             seconds: started.elapsed().as_secs_f64(),
@@ -173,7 +159,7 @@ pub fn finetune_with_progress(
         stopped = on_step(&progress).is_break();
     }
     if steps > 0 && unchecked {
-        check(&best.1, &best.2, &mut kept);
+        check(&best.1, &mut kept);
     }
     if let (_, Some(shapes)) = kept {
         scene.set_shapes(&shapes);
@@ -184,14 +170,140 @@ pub fn finetune_with_progress(
     steps
 }
 
-/// Paths and their ramps as the shapes of a scene: a ramped path as its outline in its ramp.
-fn shapes_of(paths: &[Path], ramps: &[Option<Ramp>]) -> Vec<Shape> {
-    paths
+/// What F moves, as outlines, and whether each goes back as a path (unless it ends in a ramp):
+/// the drawing's shapes as they are drawn, or each region's outline fitted with one path
+/// ([`fitted_path`]), whichever writes fewer bytes of path data. A path moved costs what it
+/// cost; an outline moved costs more than drawn (its points leave the grid), so F moves the
+/// outlines where they are compact (flat art, small images), and fits them where one path
+/// writes less (the long traced edges of photos), where moving them would spend bytes that
+/// more regions use better (docs/eval/finetune.md). `None` when there is nothing to move.
+fn starting_outlines(shapes: &[Shape], (width, height): (u32, u32)) -> Option<(Vec<Outline>, Vec<bool>)> {
+    let bytes = |shapes: &mut dyn Iterator<Item = &dyn Filled>| {
+        let mut data = String::new();
+        for shape in shapes {
+            shape.svg_data([width as f32, height as f32], Decimals::new(2), &mut data);
+        }
+        data.len()
+    };
+    let fitted: Option<Vec<Path>> = shapes
         .iter()
-        .zip(ramps)
-        .map(|(path, ramp)| match ramp.and_then(|ramp| Outline::from_path(path, ramp)) {
-            Some(outline) => Shape::from(outline),
-            None => Shape::from(*path),
+        .map(|shape| match shape {
+            Shape::Path(path) => Some(*path),
+            Shape::Outline(outline) => fitted_path(outline, (width, height)),
+        })
+        .collect();
+    let fitted = fitted.filter(|paths| {
+        bytes(&mut paths.iter().map(|p| p as &dyn Filled))
+            < bytes(&mut shapes.iter().map(|s| s as &dyn Filled))
+    });
+    let pairs: Option<Vec<(Outline, bool)>> = match fitted {
+        Some(paths) => (paths.iter().zip(shapes))
+            .map(|(path, shape)| Some((Outline::from_path(path, shape.fill())?, true)))
+            .collect(),
+        None => shapes
+            .iter()
+            .map(|shape| match shape {
+                Shape::Path(path) => Some((Outline::from_path(path, path.color)?, true)),
+                Shape::Outline(outline) => Some(((**outline).clone(), false)),
+            })
+            .collect(),
+    };
+    pairs.map(|pairs| pairs.into_iter().unzip())
+}
+
+/// Where each outline's parameters lie in the one list Adam moves: its points (x, y each),
+/// then its paint (a colour's RGB, or a ramp's ends and stops in [`ramp_params`]' layout),
+/// then its opacity.
+struct Layout {
+    /// Per outline: its number of points and whether it is filled with a ramp.
+    shapes: Vec<(usize, bool)>,
+}
+
+impl Layout {
+    /// The layout of `outlines`' parameters.
+    fn of(outlines: &[Outline]) -> Self {
+        let ramped = |outline: &Outline| matches!(outline.fill, Fill::Linear(_));
+        Self { shapes: outlines.iter().map(|o| (o.points().len(), ramped(o))).collect() }
+    }
+
+    /// `outlines`' parameters.
+    fn params(&self, outlines: &[Outline]) -> Vec<f32> {
+        let mut params = Vec::new();
+        for outline in outlines {
+            params.extend(outline.points().into_iter().flatten());
+            match outline.fill {
+                Fill::Linear(ramp) => params.extend(ramp_params(&ramp)),
+                Fill::Solid(color) => params.extend(color),
+            }
+            params.push(outline.alpha);
+        }
+        params
+    }
+
+    /// Each parameter's learning rate: `lr_points` for a path's points and a ramp's ends
+    /// (`lr_outline_points` for an outline's), `lr_colors` for colours, stops and opacity.
+    fn rates(&self, options: &FinetuneOptions, was_path: &[bool]) -> Vec<f32> {
+        let mut rates = Vec::new();
+        for (&(points, ramped), &path) in self.shapes.iter().zip(was_path) {
+            let (coords, paint) = if ramped { (RAMP_COORDS, RAMP_PARAMS - RAMP_COORDS) } else { (0, 3) };
+            let rate = if path { options.lr_points } else { options.lr_outline_points };
+            rates.extend(std::iter::repeat_n(rate, 2 * points + coords));
+            rates.extend(std::iter::repeat_n(options.lr_colors, paint + 1));
+        }
+        rates
+    }
+
+    /// The outlines of `params`, shaped as `like`.
+    fn outlines(&self, like: &[Outline], params: &[f32]) -> Vec<Outline> {
+        let mut at = 0;
+        like.iter()
+            .zip(&self.shapes)
+            .map(|(outline, &(points, ramped))| {
+                let mut take = |len: usize| {
+                    at += len;
+                    &params[at - len..at]
+                };
+                let points: Vec<[f32; 2]> = take(2 * points).chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+                let mut moved = outline.with_points(&points);
+                moved.fill = if ramped {
+                    ramp_from_params(take(RAMP_PARAMS).try_into().expect("a ramp's parameters")).into()
+                } else {
+                    Fill::Solid(take(3).try_into().expect("RGB"))
+                };
+                moved.alpha = take(1)[0];
+                moved
+            })
+            .collect()
+    }
+
+    /// `gradients` laid out as the parameters.
+    fn gradient(&self, gradients: &[ShapeGradient]) -> Vec<f32> {
+        let mut flat = Vec::new();
+        for (gradient, &(_, ramped)) in gradients.iter().zip(&self.shapes) {
+            flat.extend(gradient.points.iter().flatten());
+            if ramped {
+                flat.extend(gradient.ramp);
+            } else {
+                flat.extend(gradient.color);
+            }
+            flat.push(gradient.alpha);
+        }
+        flat
+    }
+}
+
+/// Moved outlines as the shapes of a scene: one that was a path and is still filled with one
+/// colour goes back as that path.
+fn shapes_of(outlines: &[Outline], was_path: &[bool]) -> Vec<Shape> {
+    outlines
+        .iter()
+        .zip(was_path)
+        .map(|(outline, &was_path)| match (outline.fill, was_path) {
+            (Fill::Solid(color), true) => {
+                let points: [[f32; 2]; 12] = outline.points().try_into().expect("a path's twelve points");
+                Shape::from(Path { points, color, alpha: outline.alpha })
+            }
+            _ => Shape::from(outline.clone()),
         })
         .collect()
 }
@@ -243,5 +355,61 @@ mod tests {
         assert!(errors[0] <= b.total_error(), "{errors:?} against B's {}", b.total_error());
         assert!(errors.windows(2).all(|pair| pair[1] <= pair[0]), "{errors:?}");
         assert!(errors[2] < b.total_error(), "F moved nothing: {errors:?}");
+    }
+
+    /// A compact outline (a square's four corners) moves as drawn; a long traced edge (a disc's
+    /// staircase, a point every pixel) writes less as one fitted path and is fitted; a path
+    /// stays itself either way.
+    #[test]
+    fn the_cheaper_start_is_moved() {
+        let size = (64, 64);
+        let square =
+            Outline::polygon(&[[0.2, 0.2], [0.6, 0.2], [0.6, 0.6], [0.2, 0.6]], [0.1, 0.5, 0.9], 1.0)
+                .unwrap();
+        let path = Path::quadrilateral([[0.1, 0.1], [0.3, 0.1], [0.3, 0.3], [0.1, 0.3]], [0.9; 3], 1.0);
+        let (outlines, was_path) =
+            starting_outlines(&[Shape::from(square.clone()), Shape::from(path)], size).unwrap();
+        assert_eq!(was_path, [false, true]);
+        assert_eq!(outlines[0], square);
+        assert_eq!(outlines[1].points(), path.points);
+
+        let staircase: Vec<[f32; 2]> = (0..240)
+            .map(|i| {
+                let angle = i as f32 / 240.0 * std::f32::consts::TAU;
+                [(32.0 + 25.0 * angle.cos()).round() / 64.0, (32.0 + 25.0 * angle.sin()).round() / 64.0]
+            })
+            .collect();
+        let disc = Outline::polygon(&staircase, [0.3; 3], 1.0).unwrap();
+        let (outlines, was_path) = starting_outlines(&[Shape::from(disc.clone())], size).unwrap();
+        assert_eq!(was_path, [true]);
+        assert_eq!(outlines[0].points().len(), 12);
+        assert_ne!(outlines[0], disc);
+    }
+
+    /// On flat art the fallback's outlines move as drawn: F starts where B is, every outline
+    /// stays an outline, and its points move.
+    #[test]
+    fn fine_tuning_moves_the_drawn_outlines() {
+        let b = discs();
+        let mut scene = b.clone();
+        finetune(&mut scene, &FinetuneOptions { limit: Limit::Steps(100), ..FinetuneOptions::default() });
+        assert!(
+            scene.total_error() < b.total_error(),
+            "{} against B's {}",
+            scene.total_error(),
+            b.total_error()
+        );
+        let outlines = |scene: &Scene| -> Vec<Vec<[f32; 2]>> {
+            (scene.scene().iter())
+                .filter_map(|shape| match shape {
+                    Shape::Outline(outline) => Some(outline.points()),
+                    Shape::Path(_) => None,
+                })
+                .collect()
+        };
+        let (before, after) = (outlines(&b), outlines(&scene));
+        assert!(before.len() > 1, "{} outlines", before.len());
+        assert_eq!(after.len(), before.len());
+        assert!(before.iter().zip(&after).any(|(b, a)| b.len() == a.len() && b != a));
     }
 }

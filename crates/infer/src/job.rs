@@ -325,7 +325,7 @@ impl Job {
                 }
                 _ => {}
             }
-            let rates = [finetune.lr_points, finetune.lr_colors];
+            let rates = [finetune.lr_points, finetune.lr_outline_points, finetune.lr_colors];
             if let Some(&rate) = rates.iter().find(|rate| !(rate.is_finite() && **rate > 0.0)) {
                 return Err(InvalidJob::LearningRate(rate));
             }

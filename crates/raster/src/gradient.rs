@@ -15,10 +15,10 @@ use common::{PixelBox, Ramp};
 use rayon::prelude::*;
 
 use crate::exact::coverage_exact_window;
-use crate::fill::{RAMP_PARAMS, ramp_params};
+use crate::fill::{Fill, RAMP_PARAMS, ramp_params};
 use crate::geometry::{bernstein, cubic_derivative, cubic_point};
-use crate::path::{PARAMS, POINTS, Path, SEGMENTS};
-use crate::shape::Filled;
+use crate::path::{PARAMS, POINTS, Path};
+use crate::shape::{Filled, Outline, Piece, PieceIndices};
 
 /// Outline samples per pixel of a cubic's control polygon (an upper bound of its length): two,
 /// so that every pixel the outline crosses is sampled.
@@ -53,13 +53,6 @@ impl Window {
         self.forward(paths, &[], RGB)
     }
 
-    /// [`Self::render`] with path `i` filled with `ramps[i]` where that is a ramp (points in the
-    /// window's unit square, as the exact renderer lays a [`crate::Fill::Linear`] out) instead
-    /// of its colour; paths past the end of `ramps` are flat.
-    pub fn render_ramped(&self, paths: &[Path], ramps: &[Option<Ramp>]) -> Vec<f32> {
-        self.forward(paths, ramps, RGB)
-    }
-
     /// [`Self::render`], and the union of the paths' coverages (`1 − Π(1 − coverageᵢ)`,
     /// `[height][width]`, invisible paths included, as the soft rasterizer's union): what a
     /// loss on where paths reach (outside a region's mask) reads.
@@ -71,12 +64,11 @@ impl Window {
 
     /// The mean squared error of [`Self::render`] against the target, over pixels and channels.
     pub fn l2(&self, paths: &[Path]) -> f64 {
-        self.l2_ramped(paths, &[])
+        self.error_of(&self.render(paths))
     }
 
-    /// [`Self::l2`] of [`Self::render_ramped`].
-    pub fn l2_ramped(&self, paths: &[Path], ramps: &[Option<Ramp>]) -> f64 {
-        let render = self.render_ramped(paths, ramps);
+    /// The mean squared error of a render against the target.
+    fn error_of(&self, render: &[f32]) -> f64 {
         let sum: f64 = render.iter().zip(&self.target).map(|(r, t)| f64::from((r - t) * (r - t))).sum();
         sum / render.len() as f64
     }
@@ -87,19 +79,27 @@ impl Window {
     /// gradient. Each path costs the pixels of its own box, not of the window; bands of rows
     /// run in parallel.
     pub fn l2_gradient(&self, paths: &[Path]) -> (f64, Vec<[f32; PARAMS]>) {
-        let (loss, gradients, _) = self.backward(paths, &[], RGB, &Seed::L2);
-        (loss, gradients)
+        let (loss, gradients) = self.backward(paths, &[], RGB, &Seed::L2);
+        (loss, gradients.iter().map(path_params).collect())
     }
 
-    /// [`Self::l2_gradient`] of [`Self::render_ramped`], and the gradient by each ramp's
-    /// parameters ([`crate::ramp_params`]' layout; zero for a flat path). A ramped path's
-    /// colour gets no gradient: it does not paint.
-    pub fn l2_gradient_ramped(
-        &self,
-        paths: &[Path],
-        ramps: &[Option<Ramp>],
-    ) -> (f64, Vec<[f32; PARAMS]>, Vec<[f32; RAMP_PARAMS]>) {
-        self.backward(paths, ramps, RGB, &Seed::L2)
+    /// `outlines` (points in the window's unit square, ramps laid out there as the exact
+    /// renderer lays out a [`crate::Fill::Linear`]) painted exactly, in order, over the canvas:
+    /// planar RGB like the canvas.
+    pub fn render_outlines(&self, outlines: &[Outline]) -> Vec<f32> {
+        self.forward(outlines, &ramps_of(outlines), RGB)
+    }
+
+    /// The mean squared error of [`Self::render_outlines`] against the target.
+    pub fn l2_outlines(&self, outlines: &[Outline]) -> f64 {
+        self.error_of(&self.render_outlines(outlines))
+    }
+
+    /// [`Self::l2_outlines`] and its gradient by each outline's points ([`Outline::points`]'
+    /// order), paint and opacity: [`Self::l2_gradient`] for shapes of any number of lines
+    /// and cubics, such as the regions' traced outlines, moved where they are.
+    pub fn l2_gradient_outlines(&self, outlines: &[Outline]) -> (f64, Vec<ShapeGradient>) {
+        self.backward(outlines, &ramps_of(outlines), RGB, &Seed::L2)
     }
 
     /// `paths` with each colour replaced by the one that fits the target best (least squares)
@@ -184,11 +184,15 @@ impl Window {
             (None, Some(_)) => UNION,
             (_, None) => RGB,
         };
-        self.backward(paths, &[], planes, &Seed::Given { by_render, by_union }).1
+        self.backward(paths, &[], planes, &Seed::Given { by_render, by_union })
+            .1
+            .iter()
+            .map(path_params)
+            .collect()
     }
 
     /// The planes `planes` of the render, one after the other.
-    fn forward(&self, paths: &[Path], ramps: &[Option<Ramp>], planes: Range<usize>) -> Vec<f32> {
+    fn forward<S: Movable>(&self, paths: &[S], ramps: &[Option<Ramp>], planes: Range<usize>) -> Vec<f32> {
         let coverages = self.coverages(paths);
         let laid = self.lay_out(ramps);
         let bands: Vec<Band> = self
@@ -212,25 +216,26 @@ impl Window {
 
     /// The loss (for [`Seed::L2`]) and the gradient of the loss `seed` stands for, over the
     /// planes `planes`.
-    fn backward(
+    fn backward<S: Movable>(
         &self,
-        paths: &[Path],
+        paths: &[S],
         ramps: &[Option<Ramp>],
         planes: Range<usize>,
         seed: &Seed,
-    ) -> (f64, Vec<[f32; PARAMS]>, Vec<[f32; RAMP_PARAMS]>) {
+    ) -> (f64, Vec<ShapeGradient>) {
         let coverages = self.coverages(paths);
         let laid = self.lay_out(ramps);
         self.bands()
             .into_par_iter()
             .map(|rows| self.band(paths, &laid, &coverages, rows, planes.clone(), Some(seed)))
-            .map(|band| (band.loss, band.gradients, band.ramp_gradients))
+            .map(|band| (band.loss, band.gradients))
             .reduce(
-                || (0.0, vec![[0.0; PARAMS]; paths.len()], vec![[0.0; RAMP_PARAMS]; paths.len()]),
-                |(loss, mut gradients, mut ramp_gradients), (more, others, ramp_others)| {
-                    add_into(&mut gradients, &others);
-                    add_into(&mut ramp_gradients, &ramp_others);
-                    (loss + more, gradients, ramp_gradients)
+                || (0.0, paths.iter().map(ShapeGradient::zero).collect()),
+                |(loss, mut gradients), (more, others)| {
+                    for (sum, other) in gradients.iter_mut().zip(&others) {
+                        sum.add(other);
+                    }
+                    (loss + more, gradients)
                 },
             )
     }
@@ -248,7 +253,7 @@ impl Window {
     }
 
     /// Each drawable path's pixel box and anti-aliased coverage there.
-    fn coverages(&self, paths: &[Path]) -> Vec<Option<Coverage>> {
+    fn coverages<S: Movable>(&self, paths: &[S]) -> Vec<Option<Coverage>> {
         paths
             .par_iter()
             .map(|path| {
@@ -265,9 +270,9 @@ impl Window {
     /// The rows `rows` of the planes `planes` of the render (RGB: the canvas, then each path in
     /// its colour; union: nothing, then each path in white) and, with a `seed`, their share of
     /// the loss and of the gradient.
-    fn band<'a>(
+    fn band<'a, S: Movable>(
         &'a self,
-        paths: &[Path],
+        paths: &[S],
         laid: &[Option<Laid>],
         coverages: &[Option<Coverage>],
         rows: Range<usize>,
@@ -291,8 +296,12 @@ impl Window {
             }
         }
         // The value plane `c` of `path` paints, and with what opacity.
-        let paint = |path: &Path, c: usize| {
-            if c < RGB.end { (path.color[c].clamp(0.0, 1.0), path.alpha.clamp(0.0, 1.0)) } else { (1.0, 1.0) }
+        let paint = |path: &S, c: usize| {
+            if c < RGB.end {
+                (path.color()[c].clamp(0.0, 1.0), path.alpha().clamp(0.0, 1.0))
+            } else {
+                (1.0, 1.0)
+            }
         };
         let backward = seed.is_some();
         // The rows of each path's box inside the band, and the band's pixels under it there.
@@ -340,7 +349,7 @@ impl Window {
             layers.push(Some((first..last, below)));
         }
         let Some(seed) = seed else {
-            return Band { render, loss: 0.0, gradients: Vec::new(), ramp_gradients: Vec::new() };
+            return Band { render, loss: 0.0, gradients: Vec::new() };
         };
         let mut loss = 0.0f64;
         // ∂L/∂(render), carried down through the layers.
@@ -371,8 +380,7 @@ impl Window {
             }
         }
         loss /= (3 * window_pixels) as f64;
-        let mut gradients = vec![[0.0; PARAMS]; paths.len()];
-        let mut ramp_gradients = vec![[0.0; RAMP_PARAMS]; paths.len()];
+        let mut gradients: Vec<ShapeGradient> = paths.iter().map(ShapeGradient::zero).collect();
         for (index, (((path, layer), coverage), gradient)) in
             paths.iter().zip(&layers).zip(coverages).zip(gradients.iter_mut()).enumerate().rev()
         {
@@ -431,13 +439,13 @@ impl Window {
             }
             let cells = PixelBox::new(x0 as u32, band_rows.start as u32, x1 as u32, band_rows.end as u32)
                 .expect("a band of the path's box");
-            let points = self.outline_gradient(path, drawn, cells, &by_coverage);
-            *gradient = Path { points, color: d_color, alpha: d_alpha }.to_params();
+            self.outline_gradient(path, drawn, cells, &by_coverage, &mut gradient.points);
+            (gradient.color, gradient.alpha) = (d_color, d_alpha);
             if let Some(ramp) = ramp {
-                ramp_gradients[index] = d_ramp.params(ramp, self.width, self.height);
+                gradient.ramp = d_ramp.params(ramp, self.width, self.height);
             }
         }
-        Band { render, loss, gradients, ramp_gradients }
+        Band { render, loss, gradients }
     }
 
     /// `∮ g · B_P · n ds` for every control point over the part of the outline inside the pixels
@@ -447,19 +455,19 @@ impl Window {
     /// away on either side, not from the orientation of the whole outline: a tangled outline
     /// (the loops a network draws early in training) has pieces of both orientations, and
     /// pieces inside other lobes, where moving the outline changes nothing.
-    fn outline_gradient(
+    fn outline_gradient<S: Movable>(
         &self,
-        path: &Path,
+        path: &S,
         coverage: &Coverage,
         cells: PixelBox,
         by_coverage: &[f32],
-    ) -> [[f32; 2]; POINTS] {
+        gradient: &mut [[f32; 2]],
+    ) {
         let (w, h) = (self.width as f32, self.height as f32);
         let [x0, y0, x1, y1] = corners(&cells).map(|v| v as f32);
         let cells_width = cells.width() as usize;
-        let mut gradient = [[0.0f32; 2]; POINTS];
-        for j in 0..SEGMENTS {
-            let q = path.segment(j).map(|[x, y]| [x * w, y * h]);
+        for Piece { control, indices } in path.pieces() {
+            let q = control.map(|[x, y]| [x * w, y * h]);
             let [left, top, right, bottom] = q
                 .iter()
                 .fold([f32::INFINITY, f32::INFINITY, -f32::INFINITY, -f32::INFINITY], |[l, t, r, b], p| {
@@ -499,14 +507,24 @@ impl Window {
                     continue;
                 }
                 let push = [tangent[1] * jump * g * dt, -tangent[0] * jump * g * dt];
-                for (k, weight) in bernstein(t).iter().enumerate() {
-                    let point = &mut gradient[(3 * j + k) % POINTS];
+                let mut add = |index: usize, weight: f32| {
+                    let point = &mut gradient[index];
                     point[0] += weight * push[0] * w;
                     point[1] += weight * push[1] * h;
+                };
+                match indices {
+                    PieceIndices::Cubic(indices) => {
+                        for (index, weight) in indices.into_iter().zip(bernstein(t)) {
+                            add(index, weight);
+                        }
+                    }
+                    PieceIndices::Line([start, end]) => {
+                        add(start, 1.0 - t);
+                        add(end, t);
+                    }
                 }
             }
         }
-        gradient
     }
 }
 
@@ -557,17 +575,89 @@ enum Seed<'a> {
 struct Band {
     render: Vec<f32>,
     loss: f64,
-    gradients: Vec<[f32; PARAMS]>,
-    ramp_gradients: Vec<[f32; RAMP_PARAMS]>,
+    gradients: Vec<ShapeGradient>,
 }
 
-/// Adds `others` into `sums`, entry by entry.
-fn add_into<const N: usize>(sums: &mut [[f32; N]], others: &[[f32; N]]) {
-    for (sum, other) in sums.iter_mut().zip(others) {
-        for (s, o) in sum.iter_mut().zip(other) {
-            *s += o;
+/// What the window draws and differentiates: a closed outline whose points are parameters.
+trait Movable: Filled + Sync {
+    /// Its pieces in order, with where their points lie among its points.
+    fn pieces(&self) -> Vec<Piece>;
+    /// How many points shape it.
+    fn point_count(&self) -> usize;
+}
+
+impl Movable for Path {
+    fn pieces(&self) -> Vec<Piece> {
+        Path::pieces(self)
+    }
+
+    fn point_count(&self) -> usize {
+        POINTS
+    }
+}
+
+impl Movable for Outline {
+    fn pieces(&self) -> Vec<Piece> {
+        Outline::pieces(self)
+    }
+
+    fn point_count(&self) -> usize {
+        self.points().len()
+    }
+}
+
+/// The gradient of a loss by one shape's parameters, coordinates in the window's unit square.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeGradient {
+    /// By each of its points ([`Outline::points`]' order; a path's 12 control points).
+    pub points: Vec<[f32; 2]>,
+    /// By its colour: zero for a ramp, which does not paint it.
+    pub color: [f32; 3],
+    /// By its opacity.
+    pub alpha: f32,
+    /// By its ramp's parameters ([`crate::ramp_params`]' layout); zero for a flat fill.
+    pub ramp: [f32; RAMP_PARAMS],
+}
+
+impl ShapeGradient {
+    /// No gradient for `shape`'s parameters.
+    fn zero(shape: &impl Movable) -> Self {
+        Self {
+            points: vec![[0.0; 2]; shape.point_count()],
+            color: [0.0; 3],
+            alpha: 0.0,
+            ramp: [0.0; RAMP_PARAMS],
         }
     }
+
+    /// Adds `other` in, entry by entry.
+    fn add(&mut self, other: &Self) {
+        let pairs = (self.points.iter_mut().flatten().zip(other.points.iter().flatten()))
+            .chain(self.color.iter_mut().zip(&other.color))
+            .chain([(&mut self.alpha, &other.alpha)])
+            .chain(self.ramp.iter_mut().zip(&other.ramp));
+        for (sum, value) in pairs {
+            *sum += value;
+        }
+    }
+}
+
+/// A path's gradient in [`Path::to_params`]' layout.
+fn path_params(gradient: &ShapeGradient) -> [f32; PARAMS] {
+    let mut points = [[0.0; 2]; POINTS];
+    points.copy_from_slice(&gradient.points);
+    Path { points, color: gradient.color, alpha: gradient.alpha }.to_params()
+}
+
+/// Each outline's ramp, where it is filled with one.
+fn ramps_of(outlines: &[Outline]) -> Vec<Option<Ramp>> {
+    outlines
+        .iter()
+        .map(|outline| match outline.fill {
+            Fill::Linear(ramp) => Some(ramp),
+            Fill::Solid(_) => None,
+        })
+        .collect()
 }
 
 /// A ramp laid out on a window's pixels (as the exact renderer draws it: the position of a
@@ -660,7 +750,7 @@ mod tests {
     use super::*;
     use crate::fill::{RAMP_COORDS, ramp_from_params};
     use crate::path::{COORDS, PathBatch};
-    use crate::shape::{Outline, Shape};
+    use crate::shape::Outline;
     use crate::shapes::{random_blob, random_scene};
     use crate::soft::{SoftRasterOptions, paint_soft};
 
@@ -848,19 +938,15 @@ mod tests {
 
         // Every other path filled with a ramp, drawn by the exact renderer as the outline of
         // that path with that fill (measured: 54 dB, as with flat fills: the edges differ, not the ramps).
-        let ramps: Vec<Option<Ramp>> =
-            scene.iter().enumerate().map(|(i, _)| (i % 2 == 0).then(|| random_ramp(&mut rng))).collect();
-        let shapes: Vec<Shape> = scene
-            .iter()
-            .zip(&ramps)
-            .map(|(path, ramp)| match ramp {
-                Some(ramp) => Shape::from(Outline::from_path(path, *ramp).unwrap()),
-                None => Shape::from(*path),
+        let outlines: Vec<Outline> = (scene.iter().enumerate())
+            .map(|(i, path)| match i % 2 {
+                0 => Outline::from_path(path, random_ramp(&mut rng)).unwrap(),
+                _ => Outline::from_path(path, path.color).unwrap(),
             })
             .collect();
-        let ramped = window.render_ramped(&scene, &ramps);
+        let ramped = window.render_outlines(&outlines);
         assert_ne!(ramped, window.render(&scene));
-        let psnr = psnr_against_exact(&ramped, &shapes);
+        let psnr = psnr_against_exact(&ramped, &outlines);
         assert!(psnr >= 35.0, "{psnr:.1} dB");
     }
 
@@ -898,15 +984,19 @@ mod tests {
             let mut path = random_blob(&mut rng, [0.5, 0.5], 0.3);
             path.alpha = 0.8;
             let ramp = random_ramp(&mut rng);
-            let (_, gradient, ramp_gradient) = window.l2_gradient_ramped(&[path], &[Some(ramp)]);
-            assert!(gradient[0][COORDS..COORDS + 3].iter().all(|g| *g == 0.0), "{:?}", gradient[0]);
-            assert!(gradient[0][..COORDS].iter().any(|g| *g != 0.0));
+            let outline = Outline::from_path(&path, ramp).unwrap();
+            let (_, gradient) = window.l2_gradient_outlines(std::slice::from_ref(&outline));
+            assert_eq!(gradient[0].color, [0.0; 3]);
+            assert!(gradient[0].points.iter().flatten().any(|g| *g != 0.0));
             let base = ramp_params(&ramp);
             let loss_at = |index: usize, delta: f32| {
                 let mut params = base;
                 params[index] += delta;
-                window.l2_ramped(&[path], &[Some(ramp_from_params(&params))]) as f32
+                let mut moved = outline.clone();
+                moved.fill = ramp_from_params(&params).into();
+                window.l2_outlines(&[moved]) as f32
             };
+            let ramp_gradient = [gradient[0].ramp];
             for (index, &analytic) in ramp_gradient[0].iter().enumerate() {
                 let numeric = (loss_at(index, 1e-3) - loss_at(index, -1e-3)) / 2e-3;
                 assert!(
@@ -915,6 +1005,78 @@ mod tests {
                 );
             }
             assert!(ramp_gradient[0][..RAMP_COORDS].iter().any(|g| g.abs() > 1e-3), "{:?}", ramp_gradient[0]);
+        }
+    }
+
+    /// A path and its outline ([`Outline::from_path`]) are the same shape: the same render, loss
+    /// and gradient, point for point.
+    #[test]
+    fn outlines_of_paths_move_as_the_paths() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(43);
+        let window = window(&mut rng);
+        let scene = random_scene(&mut rng, 3);
+        let outlines: Vec<Outline> = scene.iter().map(|p| Outline::from_path(p, p.color).unwrap()).collect();
+        let ((loss, gradient), (outline_loss, outline_gradient)) =
+            (window.l2_gradient(&scene), window.l2_gradient_outlines(&outlines));
+        assert_eq!(loss, outline_loss);
+        for (path, outline) in gradient.iter().zip(&outline_gradient) {
+            assert_eq!(*path, path_params(outline));
+        }
+    }
+
+    /// A polygon's corners move the way the loss says (central differences over half a pixel,
+    /// as for paths), its colour and opacity to rounding; a polygon with a hole (a second
+    /// contour the other way round) too.
+    #[test]
+    fn polygon_gradient_matches_finite_differences() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(47);
+        for round in 0..4 {
+            let window = window(&mut rng);
+            let corners: Vec<[f32; 2]> = (0..7)
+                .map(|i| {
+                    let angle = i as f32 / 7.0 * std::f32::consts::TAU;
+                    let radius = rng.random_range(0.25..0.4);
+                    [0.5 + radius * angle.cos(), 0.5 + radius * angle.sin()]
+                })
+                .collect();
+            let color = [rng.random(), rng.random(), rng.random()];
+            let mut outline = Outline::polygon(&corners, color, 0.8).unwrap();
+            if round % 2 == 1 {
+                let hole = Outline::polygon(&[[0.45, 0.45], [0.45, 0.6], [0.6, 0.55]], color, 0.8).unwrap();
+                let contours = [outline.contours(), hole.contours()].concat();
+                outline = Outline::new(contours, color, 0.8).unwrap();
+            }
+            let (_, gradient) = window.l2_gradient_outlines(std::slice::from_ref(&outline));
+            let base = outline.points();
+            assert_eq!(gradient[0].points.len(), base.len());
+            let loss_at = |index: usize, delta: f32| {
+                let mut points = base.clone();
+                points[index / 2][index % 2] += delta;
+                window.l2_outlines(&[outline.with_points(&points)]) as f32
+            };
+            let numeric: Vec<f32> = (0..2 * base.len())
+                .map(|index| {
+                    let step = if index % 2 == 0 { 0.5 / WIDTH as f32 } else { 0.5 / HEIGHT as f32 };
+                    (loss_at(index, step) - loss_at(index, -step)) / (2.0 * step)
+                })
+                .collect();
+            let analytic: Vec<f32> = gradient[0].points.iter().flatten().copied().collect();
+            let norm = |v: &[f32]| v.iter().map(|g| g * g).sum::<f32>().sqrt();
+            let (similarity, ratio) = (cosine(&numeric, &analytic), norm(&analytic) / norm(&numeric));
+            assert!(similarity > 0.9, "cosine {similarity}");
+            assert!((0.6..1.5).contains(&ratio), "norm ratio {ratio}");
+            let recolored = |c: usize, delta: f32| {
+                let mut color = color;
+                color[c] += delta;
+                let mut recolored = outline.clone();
+                recolored.fill = color.into();
+                window.l2_outlines(&[recolored]) as f32
+            };
+            for c in 0..3 {
+                let numeric = (recolored(c, 1e-3) - recolored(c, -1e-3)) / 2e-3;
+                let analytic = gradient[0].color[c];
+                assert!((numeric - analytic).abs() < 1e-3 + 0.02 * analytic.abs(), "{numeric} vs {analytic}");
+            }
         }
     }
 

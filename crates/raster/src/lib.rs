@@ -18,7 +18,7 @@ mod shapes;
 mod soft;
 mod svg;
 
-pub use adam::{Adam, PathAdam, RampAdam};
+pub use adam::{Adam, FlatAdam, PathAdam};
 pub use common::Ramp;
 pub use decimals::{Decimals, MAX_DECIMALS};
 pub use device::{Backend, BackendError};
@@ -27,7 +27,7 @@ pub use exact_batch::ExactBatch;
 pub use fill::{Fill, RAMP_COORDS, RAMP_PARAMS, ramp_from_params, ramp_params};
 pub use fit::{fit_curve, fit_outline};
 pub use geometry::{bernstein, cubic_point};
-pub use gradient::Window;
+pub use gradient::{ShapeGradient, Window};
 pub use path::{COORDS, PARAMS, PARAMS_OPAQUE, POINTS, Path, PathBatch, SEGMENTS, VISIBLE_ALPHA};
 pub use shape::{Contour, Filled, Outline, Segment, Shape};
 pub use shapes::{random_blob, random_scene};

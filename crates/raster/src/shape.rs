@@ -9,8 +9,8 @@ use tiny_skia::PathBuilder;
 
 use crate::decimals::Decimals;
 use crate::fill::Fill;
-use crate::geometry::cubic_point;
-use crate::path::{Path, SEGMENTS};
+use crate::geometry::{cubic_point, straight_cubic};
+use crate::path::{POINTS, Path, SEGMENTS};
 
 /// A closed outline and its paint, in the unit square of a canvas.
 pub trait Filled {
@@ -119,6 +119,31 @@ impl Filled for Path {
         }
         out.push('Z');
     }
+}
+
+impl Path {
+    /// Its four cubics as the window samples them ([`Path::segment`]'s points).
+    pub(crate) fn pieces(&self) -> Vec<Piece> {
+        (0..SEGMENTS)
+            .map(|j| Piece {
+                control: self.segment(j),
+                indices: PieceIndices::Cubic([0, 1, 2, 3].map(|k| (3 * j + k) % POINTS)),
+            })
+            .collect()
+    }
+}
+
+/// A piece of an outline as the window samples it: its cubic (a line as its straight cubic)
+/// and where its points lie among the shape's points.
+pub(crate) struct Piece {
+    pub control: [[f32; 2]; 4],
+    pub indices: PieceIndices,
+}
+
+/// Where a piece's points lie among its shape's points: a cubic's four, a line's two ends.
+pub(crate) enum PieceIndices {
+    Cubic([usize; 4]),
+    Line([usize; 2]),
 }
 
 /// One piece of a [`Contour`], from where the previous piece ended: a straight edge or a cubic.
@@ -245,6 +270,92 @@ impl Outline {
             })
             .collect();
         Self::new(vec![Contour { start: path.points[0], segments }], fill, path.alpha)
+    }
+
+    /// The points that shape it, in order: each contour's start, then the handles and end of
+    /// each of its pieces, the last piece's end left out (it is the start). What fine-tuning
+    /// moves, in the order of [`crate::Window::l2_gradient_outlines`]' gradient.
+    pub fn points(&self) -> Vec<[f32; 2]> {
+        let mut points = Vec::new();
+        for contour in &self.contours {
+            points.push(contour.start);
+            let last = contour.segments.len() - 1;
+            for (index, segment) in contour.segments.iter().enumerate() {
+                points.extend(segment.points().take(segment.points().count() - usize::from(index == last)));
+            }
+        }
+        points
+    }
+
+    /// The same pieces, fill and opacity through `points` ([`Self::points`]' order).
+    ///
+    /// # Panics
+    /// If `points` does not hold as many points as [`Self::points`].
+    pub fn with_points(&self, points: &[[f32; 2]]) -> Self {
+        assert_eq!(points.len(), self.points().len(), "one point per point of the outline");
+        let mut next = points.iter().copied();
+        let contours: Vec<Contour> = self
+            .contours
+            .iter()
+            .map(|contour| {
+                let start = next.next().expect("counted");
+                let last = contour.segments.len() - 1;
+                let segments = (contour.segments.iter().enumerate())
+                    .map(|(index, segment)| {
+                        let handles = match segment {
+                            Segment::Line(_) => None,
+                            Segment::Cubic(..) => {
+                                Some([next.next(), next.next()].map(|p| p.expect("counted")))
+                            }
+                        };
+                        let end = if index == last { start } else { next.next().expect("counted") };
+                        match handles {
+                            Some([c1, c2]) => Segment::Cubic(c1, c2, end),
+                            None => Segment::Line(end),
+                        }
+                    })
+                    .collect();
+                Contour { start, segments }
+            })
+            .collect();
+        let bounds = Bounds::of_points(&contours.iter().flat_map(Contour::points).collect::<Vec<_>>());
+        Self { contours, bounds, ..*self }
+    }
+
+    /// Its pieces as the window samples them, with where their points lie in [`Self::points`].
+    pub(crate) fn pieces(&self) -> Vec<Piece> {
+        let mut pieces = Vec::new();
+        let mut next = 0;
+        for contour in &self.contours {
+            let first = next;
+            next += 1;
+            let (mut at, mut at_index) = (contour.start, first);
+            let last = contour.segments.len() - 1;
+            for (index, segment) in contour.segments.iter().enumerate() {
+                let handles = match segment {
+                    Segment::Line(_) => None,
+                    Segment::Cubic(..) => {
+                        next += 2;
+                        Some([next - 2, next - 1])
+                    }
+                };
+                let end_index = if index == last {
+                    first
+                } else {
+                    next += 1;
+                    next - 1
+                };
+                let (control, indices) = match (*segment, handles) {
+                    (Segment::Cubic(c1, c2, end), Some([h1, h2])) => {
+                        ([at, c1, c2, end], PieceIndices::Cubic([at_index, h1, h2, end_index]))
+                    }
+                    _ => (straight_cubic(at, segment.end()), PieceIndices::Line([at_index, end_index])),
+                };
+                pieces.push(Piece { control, indices });
+                (at, at_index) = (segment.end(), end_index);
+            }
+        }
+        pieces
     }
 
     /// Its contours.
