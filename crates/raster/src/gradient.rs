@@ -602,7 +602,7 @@ impl Movable for Outline {
     }
 
     fn point_count(&self) -> usize {
-        self.points().len()
+        Outline::point_count(self)
     }
 }
 
@@ -632,11 +632,15 @@ impl ShapeGradient {
 
     /// Adds `other` in, entry by entry.
     fn add(&mut self, other: &Self) {
-        let pairs = (self.points.iter_mut().flatten().zip(other.points.iter().flatten()))
-            .chain(self.color.iter_mut().zip(&other.color))
-            .chain([(&mut self.alpha, &other.alpha)])
-            .chain(self.ramp.iter_mut().zip(&other.ramp));
-        for (sum, value) in pairs {
+        for (sum, value) in self.points.iter_mut().zip(&other.points) {
+            sum[0] += value[0];
+            sum[1] += value[1];
+        }
+        for (sum, value) in self.color.iter_mut().zip(&other.color) {
+            *sum += value;
+        }
+        self.alpha += other.alpha;
+        for (sum, value) in self.ramp.iter_mut().zip(&other.ramp) {
             *sum += value;
         }
     }

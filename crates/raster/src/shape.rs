@@ -292,7 +292,7 @@ impl Outline {
     /// # Panics
     /// If `points` does not hold as many points as [`Self::points`].
     pub fn with_points(&self, points: &[[f32; 2]]) -> Self {
-        assert_eq!(points.len(), self.points().len(), "one point per point of the outline");
+        assert_eq!(points.len(), self.point_count(), "one point per point of the outline");
         let mut next = points.iter().copied();
         let contours: Vec<Contour> = self
             .contours
@@ -320,6 +320,16 @@ impl Outline {
             .collect();
         let bounds = Bounds::of_points(&contours.iter().flat_map(Contour::points).collect::<Vec<_>>());
         Self { contours, bounds, ..*self }
+    }
+
+    /// How many points [`Self::points`] holds.
+    pub(crate) fn point_count(&self) -> usize {
+        let count = |segment: &Segment| match segment {
+            Segment::Line(_) => 1,
+            Segment::Cubic(..) => 3,
+        };
+        // Each contour's start, and its pieces' points but the last piece's end (the start).
+        self.contours.iter().map(|c| c.segments.iter().map(count).sum::<usize>()).sum()
     }
 
     /// Its pieces as the window samples them, with where their points lie in [`Self::points`].
