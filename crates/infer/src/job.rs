@@ -241,7 +241,7 @@ pub struct Job {
     pub regions: Option<usize>,
     /// How the budget is split; by default the operating point stored with the models.
     pub operating_point: Split,
-    /// SuperSVG-F: fine-tune every path against the image after B.
+    /// SuperSVG-F: fine-tune every shape against the image after B.
     pub finetune: Option<FinetuneOptions>,
     /// How the SVG is written (decimals, at most [`MAX_DECIMALS`]).
     pub svg: SvgOptions,

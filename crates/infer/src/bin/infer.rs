@@ -88,10 +88,10 @@ struct Args {
     /// Write MSE, PSNR, SSIM, path count and seconds per stage as JSON (`.json` file, or a folder).
     #[arg(long)]
     metrics: Option<PathBuf>,
-    /// SuperSVG-F: fine-tune every path against the image, this many steps (0 to 100000).
+    /// SuperSVG-F: fine-tune every shape against the image, this many steps (0 to 100000).
     #[arg(long, conflicts_with = "finetune_secs")]
     finetune_steps: Option<usize>,
-    /// SuperSVG-F: fine-tune every path against the image for this many seconds (0 to 3600).
+    /// SuperSVG-F: fine-tune every shape against the image for this many seconds (0 to 3600).
     #[arg(long, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
     /// Decimals of the SVG's coordinates (0 to 6; 2 keeps 1/100 pixel, fewer make smaller files).
