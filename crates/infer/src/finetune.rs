@@ -178,13 +178,7 @@ pub fn finetune_with_progress(
 /// writes less (the long traced edges of photos), where moving them would spend bytes that
 /// more regions use better (docs/eval/finetune.md). `None` when there is nothing to move.
 fn starting_outlines(shapes: &[Shape], (width, height): (u32, u32)) -> Option<(Vec<Outline>, Vec<bool>)> {
-    let bytes = |shapes: &mut dyn Iterator<Item = &dyn Filled>| {
-        let mut data = String::new();
-        for shape in shapes {
-            shape.svg_data([width as f32, height as f32], Decimals::new(2), &mut data);
-        }
-        data.len()
-    };
+    let size = [width as f32, height as f32];
     let fitted: Option<Vec<Path>> = shapes
         .iter()
         .map(|shape| match shape {
@@ -192,10 +186,7 @@ fn starting_outlines(shapes: &[Shape], (width, height): (u32, u32)) -> Option<(V
             Shape::Outline(outline) => fitted_path(outline, (width, height)),
         })
         .collect();
-    let fitted = fitted.filter(|paths| {
-        bytes(&mut paths.iter().map(|p| p as &dyn Filled))
-            < bytes(&mut shapes.iter().map(|s| s as &dyn Filled))
-    });
+    let fitted = fitted.filter(|paths| path_bytes(paths, size) < path_bytes(shapes, size));
     let pairs: Option<Vec<(Outline, bool)>> = match fitted {
         Some(paths) => (paths.iter().zip(shapes))
             .map(|(path, shape)| Some((Outline::from_path(path, shape.fill())?, true)))
@@ -209,6 +200,15 @@ fn starting_outlines(shapes: &[Shape], (width, height): (u32, u32)) -> Option<(V
             .collect(),
     };
     pairs.map(|pairs| pairs.into_iter().unzip())
+}
+
+/// The bytes of `shapes`' SVG path data on a canvas of `size`, at two decimals.
+fn path_bytes(shapes: &[impl Filled], size: [f32; 2]) -> usize {
+    let mut data = String::new();
+    for shape in shapes {
+        shape.svg_data(size, Decimals::new(2), &mut data);
+    }
+    data.len()
 }
 
 /// Where each outline's parameters lie in the one list Adam moves: its points (x, y each),

@@ -279,10 +279,10 @@ impl Outline {
         let mut points = Vec::new();
         for contour in &self.contours {
             points.push(contour.start);
-            let last = contour.segments.len() - 1;
-            for (index, segment) in contour.segments.iter().enumerate() {
-                points.extend(segment.points().take(segment.points().count() - usize::from(index == last)));
+            for segment in &contour.segments {
+                points.extend(segment.points());
             }
+            points.pop();
         }
         points
     }
@@ -293,79 +293,75 @@ impl Outline {
     /// If `points` does not hold as many points as [`Self::points`].
     pub fn with_points(&self, points: &[[f32; 2]]) -> Self {
         assert_eq!(points.len(), self.point_count(), "one point per point of the outline");
-        let mut next = points.iter().copied();
-        let contours: Vec<Contour> = self
-            .contours
-            .iter()
-            .map(|contour| {
-                let start = next.next().expect("counted");
-                let last = contour.segments.len() - 1;
-                let segments = (contour.segments.iter().enumerate())
-                    .map(|(index, segment)| {
-                        let handles = match segment {
-                            Segment::Line(_) => None,
-                            Segment::Cubic(..) => {
-                                Some([next.next(), next.next()].map(|p| p.expect("counted")))
-                            }
-                        };
-                        let end = if index == last { start } else { next.next().expect("counted") };
-                        match handles {
-                            Some([c1, c2]) => Segment::Cubic(c1, c2, end),
-                            None => Segment::Line(end),
+        let contours: Vec<Contour> = (self.contours.iter().zip(self.layout()))
+            .map(|(contour, (start, pieces))| Contour {
+                start: points[start],
+                segments: (contour.segments.iter().zip(pieces))
+                    .map(|(segment, (handles, end))| match (segment, handles) {
+                        (Segment::Cubic(..), Some([c1, c2])) => {
+                            Segment::Cubic(points[c1], points[c2], points[end])
                         }
+                        _ => Segment::Line(points[end]),
                     })
-                    .collect();
-                Contour { start, segments }
+                    .collect(),
             })
             .collect();
         let bounds = Bounds::of_points(&contours.iter().flat_map(Contour::points).collect::<Vec<_>>());
         Self { contours, bounds, ..*self }
     }
 
-    /// How many points [`Self::points`] holds.
+    /// How many points [`Self::points`] holds: each contour's start and its pieces' points,
+    /// but the last piece's end (the start again).
     pub(crate) fn point_count(&self) -> usize {
         let count = |segment: &Segment| match segment {
             Segment::Line(_) => 1,
             Segment::Cubic(..) => 3,
         };
-        // Each contour's start, and its pieces' points but the last piece's end (the start).
         self.contours.iter().map(|c| c.segments.iter().map(count).sum::<usize>()).sum()
     }
 
     /// Its pieces as the window samples them, with where their points lie in [`Self::points`].
     pub(crate) fn pieces(&self) -> Vec<Piece> {
         let mut pieces = Vec::new();
-        let mut next = 0;
-        for contour in &self.contours {
-            let first = next;
-            next += 1;
-            let (mut at, mut at_index) = (contour.start, first);
-            let last = contour.segments.len() - 1;
-            for (index, segment) in contour.segments.iter().enumerate() {
-                let handles = match segment {
-                    Segment::Line(_) => None,
-                    Segment::Cubic(..) => {
-                        next += 2;
-                        Some([next - 2, next - 1])
-                    }
-                };
-                let end_index = if index == last {
-                    first
-                } else {
-                    next += 1;
-                    next - 1
-                };
+        for (contour, (start, layout)) in self.contours.iter().zip(self.layout()) {
+            let (mut at, mut at_index) = (contour.start, start);
+            for (segment, (handles, end)) in contour.segments.iter().zip(layout) {
                 let (control, indices) = match (*segment, handles) {
-                    (Segment::Cubic(c1, c2, end), Some([h1, h2])) => {
-                        ([at, c1, c2, end], PieceIndices::Cubic([at_index, h1, h2, end_index]))
+                    (Segment::Cubic(c1, c2, to), Some([h1, h2])) => {
+                        ([at, c1, c2, to], PieceIndices::Cubic([at_index, h1, h2, end]))
                     }
-                    _ => (straight_cubic(at, segment.end()), PieceIndices::Line([at_index, end_index])),
+                    _ => (straight_cubic(at, segment.end()), PieceIndices::Line([at_index, end])),
                 };
                 pieces.push(Piece { control, indices });
-                (at, at_index) = (segment.end(), end_index);
+                (at, at_index) = (segment.end(), end);
             }
         }
         pieces
+    }
+
+    /// Where each contour's points lie in [`Self::points`]: its start's index, and per piece
+    /// its handles' (a cubic's) and its end's, the last piece's end being the start's. The one
+    /// place that layout is laid down.
+    fn layout(&self) -> Vec<(usize, Vec<(Option<[usize; 2]>, usize)>)> {
+        let mut next = 0;
+        let mut take = || {
+            next += 1;
+            next - 1
+        };
+        self.contours
+            .iter()
+            .map(|contour| {
+                let start = take();
+                let last = contour.segments.len() - 1;
+                let pieces = (contour.segments.iter().enumerate())
+                    .map(|(index, segment)| {
+                        let handles = matches!(segment, Segment::Cubic(..)).then(|| [take(), take()]);
+                        (handles, if index == last { start } else { take() })
+                    })
+                    .collect();
+                (start, pieces)
+            })
+            .collect()
     }
 
     /// Its contours.
