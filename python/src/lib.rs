@@ -39,8 +39,8 @@ struct Request {
     finetune_secs: Option<f64>,
     /// Long side of the working image.
     size: u32,
-    /// What the regions are filled with.
-    fills: Fills,
+    /// What the regions are filled with (`None`: the job's default).
+    fills: Option<Fills>,
     /// Where to write the SVG too.
     out: Option<PathBuf>,
 }
@@ -50,11 +50,14 @@ impl Request {
         paths: Option<usize>,
         finetune_secs: Option<f64>,
         size: u32,
-        fills: &str,
+        fills: Option<&str>,
         out: Option<PathBuf>,
         input: Option<&Path>,
     ) -> PyResult<Self> {
-        let fills = fills.parse::<Fills>().map_err(|err| PyValueError::new_err(format!("fills: {err}")))?;
+        let fills = fills
+            .map(str::parse::<Fills>)
+            .transpose()
+            .map_err(|err| PyValueError::new_err(format!("fills: {err}")))?;
         if let Some(out) = &out {
             check_out(out, input)?;
         }
@@ -169,7 +172,7 @@ fn from_file(
     paths: Paths,
     finetune_secs: Option<f64>,
     size: u32,
-    fills: &str,
+    fills: Option<&str>,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     Request::new(paths, finetune_secs, size, fills, out, Some(&path))?
@@ -185,7 +188,7 @@ fn from_bytes(
     paths: Paths,
     finetune_secs: Option<f64>,
     size: u32,
-    fills: &str,
+    fills: Option<&str>,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     Request::new(paths, finetune_secs, size, fills, out, None)?
@@ -206,7 +209,7 @@ fn from_pixels(
     paths: Paths,
     finetune_secs: Option<f64>,
     size: u32,
-    fills: &str,
+    fills: Option<&str>,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     let layout = PixelLayout::from_channels(channels)

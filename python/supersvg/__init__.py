@@ -19,7 +19,7 @@ __all__ = ["vectorize", "MAX_PATHS"]
 MAX_PATHS = _native.MAX_PATHS
 
 
-def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills="flat", out=None):
+def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, out=None):
     """Draws ``image`` as an SVG and returns its text.
 
     ``image`` is a path (``str`` or ``os.PathLike``) of a png, jpeg, webp, gif, bmp or tiff file,
@@ -31,7 +31,8 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills="flat", o
     (SuperSVG-F). ``size`` is the long side, in pixels, of the working image (the SVG keeps the
     input's size). ``fills`` is what the regions are filled with: ``"flat"`` (each its mean
     colour), ``"linear"`` (a colour ramp where one fits) or ``"auto"`` (a ramp where it draws
-    better than its bytes would as regions). ``out`` also writes the SVG to that file (whole or not at all): a ``.svg`` file,
+    better than its bytes would as regions); ``None`` (the default) is ``"auto"``, but ``"flat"``
+    with ``finetune_secs`` and for flat art (icons, emoji). ``out`` also writes the SVG to that file (whole or not at all): a ``.svg`` file,
     never the input, checked before any work.
 
     Raises ``ValueError`` for an image that cannot be read, an argument out of range or an ``out``
@@ -52,7 +53,7 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills="flat", o
             raise ValueError(f"finetune_secs={finetune_secs}: out of range") from None
     if out is not None:
         out = os.fsdecode(os.fspath(out))
-    if not isinstance(fills, str):
+    if fills is not None and not isinstance(fills, str):
         raise ValueError(f"fills={fills!r}: give 'flat', 'linear' or 'auto'")
     options = (budget, finetune_secs, size, fills, out)
     if isinstance(image, (str, os.PathLike)):

@@ -76,14 +76,17 @@ def test_finetune_secs_runs_superSVG_F():
 
 
 def test_fills_draw_ramps_as_gradients_when_asked():
-    flat = supersvg.vectorize(EXAMPLE, paths=40, size=128)
+    flat = supersvg.vectorize(EXAMPLE, paths=40, size=128, fills="flat")
     linear = supersvg.vectorize(EXAMPLE, paths=40, size=128, fills="linear")
     assert "<linearGradient" not in flat
     assert linear.count("<linearGradient") == linear.count('fill="url(#') >= 10
+    # The default is auto for SuperSVG-B.
+    default = supersvg.vectorize(EXAMPLE, paths=40, size=128)
+    assert default == supersvg.vectorize(EXAMPLE, paths=40, size=128, fills="auto") != flat
     with pytest.raises(ValueError, match="not a fill"):
         supersvg.vectorize(EXAMPLE, fills="smooth")
     with pytest.raises(ValueError, match="fills"):
-        supersvg.vectorize(EXAMPLE, fills=None)
+        supersvg.vectorize(EXAMPLE, fills=3)
 
 
 def test_bad_input_is_a_python_exception_naming_the_problem(tmp_path):

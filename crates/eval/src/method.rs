@@ -38,8 +38,9 @@ pub enum Method {
     OursOptimizer,
     /// SuperSVG-B with every region a ramp fits filled with it (`--fills linear`).
     OursLinear,
-    /// SuperSVG-B with the ramps that pay for their bytes (`--fills auto`).
-    OursFillsAuto,
+    /// SuperSVG-B with every region in its mean colour (`--fills flat`), where the default
+    /// puts ramps that pay for their bytes.
+    OursFlat,
     /// The fallback drawing alone.
     Fallback,
     /// vtracer with one knob searched to the budget.
@@ -63,8 +64,8 @@ impl Method {
             Method::OursPaper => "SuperSVG-B, the paper's inference (--operating-point paper)",
             Method::OursOptimizer => "SuperSVG-B, the exact optimizer in E_r's place (--refiner optimizer)",
             Method::OursLinear => "SuperSVG-B, regions filled with ramps (--fills linear)",
-            Method::OursFillsAuto => "SuperSVG-B, ramps where they pay (--fills auto)",
-            Method::Fallback => "fallback alone (traced regions, mean colour)",
+            Method::OursFlat => "SuperSVG-B, regions filled flat (--fills flat)",
+            Method::Fallback => "fallback alone (traced regions in their fills)",
             Method::Vtracer => "vtracer",
             Method::VtracerDefault => "vtracer (default settings)",
             Method::Potrace => "potrace, 16 colour layers",
@@ -83,7 +84,7 @@ impl Method {
                 | Method::OursPaper
                 | Method::OursOptimizer
                 | Method::OursLinear
-                | Method::OursFillsAuto
+                | Method::OursFlat
                 | Method::Fallback
         )
     }
@@ -98,7 +99,7 @@ impl Method {
             Method::OursPaper => "paper",
             Method::OursOptimizer => "optimizer",
             Method::OursLinear => "linear",
-            Method::OursFillsAuto => "fills-auto",
+            Method::OursFlat => "flat",
             _ => "b",
         };
         match (self, budget) {
@@ -245,7 +246,7 @@ impl Vectorizer for Ours<'_> {
     }
 
     fn sweeps(&self) -> bool {
-        matches!(self.method, Method::OursB | Method::Fallback | Method::OursLinear | Method::OursFillsAuto)
+        matches!(self.method, Method::OursB | Method::Fallback | Method::OursLinear | Method::OursFlat)
     }
 
     fn draw(&self, input: &Input, budget: Budget) -> Result<Option<Drawing>, DrawError> {

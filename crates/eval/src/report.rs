@@ -282,7 +282,7 @@ fn colour(method: Method) -> usize {
         Method::Fallback => 1,
         Method::Vtracer => 2,
         Method::OursLinear => 4,
-        Method::OursFillsAuto => 6,
+        Method::OursFlat => 6,
         _ => 3,
     }
 }

@@ -185,7 +185,7 @@ fn a_sweep_reports_each_budget_and_draws_the_chart() {
     assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
     let report = std::fs::read_to_string(&out).unwrap();
     let section = report.split("## Rate and distortion").nth(1).unwrap_or_else(|| panic!("{report}"));
-    for method in ["SuperSVG-B (ours)", "fallback alone (traced regions, mean colour)"] {
+    for method in ["SuperSVG-B (ours)", "fallback alone (traced regions in their fills)"] {
         let kilobytes: Vec<f64> = ["4 paths", "16 paths", "64 paths"]
             .iter()
             .map(|setting| {

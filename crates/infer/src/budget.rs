@@ -36,7 +36,7 @@ pub struct BudgetPlan {
     /// The regions the image is cut into.
     pub regions: usize,
     /// How the regions are drawn: the tolerance (the job's, or curves for flat art under an
-    /// automatic budget) and the fills (the job's, ramps priced at the cut).
+    /// automatic budget) and the fills ([`Job::fills_for`], ramps priced at the cut).
     pub style: Style,
     /// Whether the networks' paths are bought with regions ([`Market`]): unless the job fixed
     /// the region count.
@@ -56,7 +56,7 @@ impl BudgetPlan {
         let point = Self::point(job, models);
         let most = max_regions(width, height);
         let mut warnings = Vec::new();
-        let (paths, regions, tree, tolerance) = match job.paths {
+        let (paths, regions, tree, tolerance, fills) = match job.paths {
             PathBudget::Count(paths) => {
                 // Unless told how many, the regions fill what E_r's share leaves, and E_c and E_r
                 // buy their paths from them.
@@ -66,18 +66,31 @@ impl BudgetPlan {
                     warnings.push(Warning::RegionsLowered { asked, used: most, width, height });
                 }
                 let regions = asked.min(most);
-                (paths, regions, hierarchy(image, regions, job.compactness)?, job.tolerance)
+                let tree = hierarchy(image, regions, job.compactness)?;
+                // Flat art as an automatic budget judges it; a tree made for fewer regions
+                // than the test reads (a budget under its paths) is too coarse to tell.
+                let fills = job.fills_for(|| {
+                    let rule = AutoRule::default();
+                    let test = flat_art_regions(image, &point, &rule);
+                    Ok::<_, SlicError>(if regions >= test {
+                        is_flat_art(&tree, image, &point, &rule)
+                    } else {
+                        is_flat_art(&hierarchy(image, test, job.compactness)?, image, &point, &rule)
+                    })
+                })?;
+                (paths, regions, tree, job.tolerance, fills)
             }
             PathBudget::Auto(rule) => {
                 let choice = auto_budget(image, &point, job.compactness, &rule)?;
                 let tolerance = job.tolerance.or(choice.flat.then_some(rule.flat_tolerance));
-                (choice.paths, choice.regions, choice.hierarchy, tolerance)
+                let fills = job.fills_for(|| Ok::<_, SlicError>(choice.flat))?;
+                (choice.paths, choice.regions, choice.hierarchy, tolerance, fills)
             }
         };
         let auto = matches!(job.paths, PathBudget::Auto(_));
         // Regions that may be ramps are merged as such: the same base merged again, a ramp
         // priced at the bytes it costs, in what a region's bytes take away on Ward's tree.
-        let (ramps, tree) = match job.fills {
+        let (ramps, tree) = match fills {
             Fills::Flat => (Ramps::None, tree),
             fills => {
                 let region_worth = region_worth(&tree, regions);
@@ -187,6 +200,7 @@ pub fn auto_budget(
     let regions_for = |paths: usize| point.filling_regions(paths).clamp(1, paths - 1).min(most);
     let tree_for = |paths: usize| hierarchy(image, regions_for(paths), compactness);
     let mut tree = (AUTO_STAGE.min(max_paths), tree_for(AUTO_STAGE.min(max_paths))?);
+    let flat = is_flat_art(&tree.1, image, point, rule);
     let mut ladder: Vec<(usize, f64)> = Vec::new();
     let mut paths = AUTO_FIRST.min(max_paths);
     loop {
@@ -205,8 +219,21 @@ pub fn auto_budget(
     };
     let knee = (0..ladder.len()).find(|&i| ladder[i + 1..].iter().all(|&later| !pays(ladder[i], later)));
     let paths = ladder[knee.unwrap_or(ladder.len() - 1)].0;
-    let flat = ladder.iter().any(|&(paths, value)| paths <= rule.flat_paths && value >= rule.target_psnr);
     Ok(AutoChoice { paths, regions: regions_for(paths), hierarchy: tree.1, flat })
+}
+
+/// Whether `image` is flat art by `rule`, read off its merge tree `tree`: its regions filled
+/// flat reach `rule.target_psnr` within `rule.flat_paths` paths (as `point` splits them). Flat
+/// art is drawn with curves under an automatic budget ([`AutoChoice::flat`]) and in flat
+/// fills by default at any budget ([`Job::fills_for`]).
+fn is_flat_art(tree: &Hierarchy, image: &Rgb32FImage, point: &OperatingPoint, rule: &AutoRule) -> bool {
+    flat_psnr(tree.fill_error(flat_art_regions(image, point, rule)), image) >= rule.target_psnr
+}
+
+/// The regions [`is_flat_art`] reads: those of `rule.flat_paths` paths, as `point` splits them.
+fn flat_art_regions(image: &Rgb32FImage, point: &OperatingPoint, rule: &AutoRule) -> usize {
+    let paths = rule.flat_paths.max(2);
+    point.filling_regions(paths).clamp(1, paths - 1).min(max_regions(image.width(), image.height()))
 }
 
 /// The PSNR (dB) of a flat fill of `image` whose squared RGB error, summed over its pixels, is

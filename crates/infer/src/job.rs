@@ -196,11 +196,10 @@ impl std::str::FromStr for Refiner {
 )]
 pub struct RefinerParseError(pub String);
 
-/// What regions are filled with (`infer --fills`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// What regions are filled with (`infer --fills`; [`Job::fills`] says which by default).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Fills {
     /// Every region in its mean colour.
-    #[default]
     Flat,
     /// Every region whose pixels a linear ramp fits better, with that ramp.
     Linear,
@@ -254,8 +253,13 @@ pub struct Job {
     /// better at equal paths, but for flat art under an automatic budget
     /// ([`AutoRule::flat_tolerance`]).
     pub tolerance: Option<f32>,
-    /// What the regions are filled with.
-    pub fills: Fills,
+    /// What the regions are filled with. `None` (the default): ramps where they pay
+    /// ([`Fills::Auto`]), which draw better than flat fills at equal file size, but flat fills
+    /// when fine-tuning (after F ramps no longer pay for their bytes) and for flat art (a
+    /// picture whose regions filled flat reach [`AutoRule::default`]'s target within its
+    /// `flat_paths`), which ramps drew worse with curves and gained little without. Measured in
+    /// docs/eval/fills.md.
+    pub fills: Option<Fills>,
     /// Crops per network call (at least 1).
     pub batch: usize,
     /// Who proposes the refinement stage's paths: E_r, or the exact optimizer in its place.
@@ -276,7 +280,7 @@ impl Default for Job {
             svg: SvgOptions::default(),
             compactness: 30.0,
             tolerance: None,
-            fills: Fills::default(),
+            fills: None,
             batch: 32,
             refiner: Refiner::Network,
             ssim: false,
@@ -285,6 +289,16 @@ impl Default for Job {
 }
 
 impl Job {
+    /// What the regions of an image are filled with ([`Job::fills`]): the job's fills, else
+    /// the default, asking `flat_art` whether the image is flat art only where that decides.
+    pub fn fills_for<E>(&self, flat_art: impl FnOnce() -> Result<bool, E>) -> Result<Fills, E> {
+        Ok(match self.fills {
+            Some(fills) => fills,
+            None if self.finetune.is_some() || flat_art()? => Fills::Flat,
+            None => Fills::Auto,
+        })
+    }
+
     /// Checks every value against its limit and the values against each other; the error
     /// names the field ([`InvalidJob::field`]). [`crate::run`] calls it first.
     pub fn validate(&self) -> Result<(), InvalidJob> {
@@ -485,6 +499,23 @@ mod tests {
         for text in ["2", "20000", "auto"] {
             assert_eq!(text.parse::<PathBudget>().unwrap().to_string(), text);
         }
+    }
+
+    #[test]
+    fn ramps_are_the_default_but_for_fine_tuning_and_flat_art_and_a_given_fill_is_kept() {
+        let b = Job::default();
+        let f = Job { finetune: Some(FinetuneOptions::default()), ..Job::default() };
+        let art = |flat: bool| move || Ok::<_, ()>(flat);
+        assert_eq!((b.fills_for(art(false)), b.fills_for(art(true))), (Ok(Fills::Auto), Ok(Fills::Flat)));
+        // Where the answer cannot change the fills, the image is not asked about.
+        let unasked = || -> Result<bool, ()> { panic!("asked whether the image is flat art") };
+        assert_eq!(f.fills_for(unasked), Ok(Fills::Flat));
+        for fills in [Fills::Flat, Fills::Linear, Fills::Auto] {
+            for job in [&b, &f] {
+                assert_eq!(Job { fills: Some(fills), ..job.clone() }.fills_for(unasked), Ok(fills));
+            }
+        }
+        assert_eq!(b.fills_for(|| Err("no tree")), Err("no tree"));
     }
 
     #[test]

@@ -50,6 +50,7 @@ fn uncovered(svg: &str, width: u32, height: u32) -> usize {
 #[test]
 fn stays_within_the_budget_and_reports_what_it_drew() {
     let (models, image, device) = (models(true), photo(), Device::flex());
+    let mut proposed = 0;
     for budget in [2usize, 3, 40, 100] {
         let outcome = run(&models, &image, &job(budget), &device).unwrap();
         let (report, svg) = (&outcome.report, &outcome.svg);
@@ -66,9 +67,18 @@ fn stays_within_the_budget_and_reports_what_it_drew() {
         let seconds = report.seconds;
         let parts = seconds.decode + seconds.superpixels + seconds.coarse + seconds.refine + seconds.export;
         assert!((seconds.total - parts).abs() < 1e-9 && seconds.finetune.is_none());
-        // The networks' passes are part of the coarse and refinement stages' time.
-        assert!(seconds.networks > 0.0 && seconds.networks <= seconds.coarse + seconds.refine, "{seconds:?}");
+        // The networks' passes are part of the coarse and refinement stages' time, and take
+        // time where E_r proposed (where the drawing leaves it no region, it is not asked).
+        assert!(seconds.networks <= seconds.coarse + seconds.refine, "{seconds:?}");
+        assert_eq!(
+            seconds.networks > 0.0,
+            report.refinement.proposed > 0,
+            "{seconds:?} {:?}",
+            report.refinement
+        );
+        proposed += report.refinement.proposed;
     }
+    assert!(proposed > 0, "E_r proposed nothing at any budget");
 }
 
 #[test]
@@ -187,10 +197,12 @@ fn budgets_and_region_counts_out_of_range_are_errors() {
 fn no_fine_tuning_step_is_no_fine_tuning() {
     use infer::{FinetuneOptions, Limit};
     let (models, image, device) = (models(true), photo(), Device::flex());
-    let plain = run(&models, &image, &job(30), &device).unwrap();
+    // With the fills given: by default F fills flat and B with ramps.
+    let plain_job = Job { fills: Some(infer::Fills::Auto), ..job(30) };
+    let plain = run(&models, &image, &plain_job, &device).unwrap();
     for budget in [Limit::Steps(0), Limit::Seconds(0.0)] {
         let finetune = Some(FinetuneOptions { limit: budget, ..FinetuneOptions::default() });
-        let tuned = run(&models, &image, &Job { finetune, ..job(30) }, &device).unwrap();
+        let tuned = run(&models, &image, &Job { finetune, ..plain_job.clone() }, &device).unwrap();
         assert!(tuned.svg == plain.svg, "{budget:?} changed the drawing");
         assert_eq!(tuned.report.finetune_steps, Some(0));
     }

@@ -27,7 +27,7 @@ pub struct Settings {
     pub paths: Option<String>,
     /// `--tolerance`: curves that stray at most this many pixels (default: traced polygons).
     pub tolerance: Option<f32>,
-    /// `--fills`: `flat`, `linear` or `auto` (default flat).
+    /// `--fills`: `flat`, `linear` or `auto` (default: auto, flat when fine-tuning and for flat art).
     pub fills: Option<String>,
     /// `--finetune-secs`: SuperSVG-F for this many seconds after B (default: none).
     pub finetune_secs: Option<f64>,
@@ -62,7 +62,7 @@ impl Settings {
         let job = Job {
             paths: self.paths.as_deref().map(str::parse::<PathBudget>).transpose()?.unwrap_or(defaults.paths),
             tolerance: self.tolerance,
-            fills: self.fills.as_deref().map(str::parse::<Fills>).transpose()?.unwrap_or(defaults.fills),
+            fills: self.fills.as_deref().map(str::parse::<Fills>).transpose()?,
             finetune: self.finetune_secs.map(|seconds| FinetuneOptions {
                 limit: Limit::Seconds(seconds),
                 ..FinetuneOptions::default()
@@ -156,7 +156,7 @@ mod tests {
         let job = settings.job().unwrap();
         assert!(matches!(job.paths, PathBudget::Auto(_)));
         assert_eq!(job.tolerance, Some(1.5));
-        assert_eq!(job.fills, Fills::Linear);
+        assert_eq!(job.fills, Some(Fills::Linear));
         assert!(job.finetune.is_none());
         let job = Settings::from_json(r#"{"finetune_secs": 2}"#).unwrap().job().unwrap();
         assert_eq!(job.paths, PathBudget::Count(500));

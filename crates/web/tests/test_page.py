@@ -93,12 +93,12 @@ def test_the_page_draws_what_infer_draws_at_the_defaults(page, tmp_path):
 def test_the_controls_reach_the_job(page, tmp_path):
     for control in ("paths-auto", "curves"):
         page.find_element(By.ID, control).click()
-    page.find_element(By.CSS_SELECTOR, "#fills option[value='auto']").click()
+    page.find_element(By.CSS_SELECTOR, "#fills option[value='flat']").click()
     pick(page, PHOTO)
     outcome, _ = wait_drawn(page)
     assert outcome == "done", page.find_element(By.ID, "message").text
     svg = downloaded_svg(page)
-    assert svg == native_svg(tmp_path, "--paths", "auto", "--tolerance", "0", "--fills", "auto")
+    assert svg == native_svg(tmp_path, "--paths", "auto", "--tolerance", "0", "--fills", "flat")
 
 
 def test_a_file_that_is_no_image_gets_a_clear_message(page, tmp_path):

@@ -23,7 +23,7 @@ function settings() {
   return {
     paths: $("paths-auto").checked ? "auto" : $("paths").value,
     tolerance: $("curves").checked ? Number($("tolerance").value) : undefined,
-    fills: $("fills").value,
+    fills: $("fills").value || undefined,
     finetune_secs: finetune > 0 ? finetune : undefined,
   };
 }

@@ -44,8 +44,9 @@ enum Peer {
     /// SuperSVG-B with the exact optimizer proposing in E_r's place: as `infer --paths N
     /// --refiner optimizer` draws it (what E_r's role can reach, for judging a trained E_r).
     Optimizer,
-    /// SuperSVG-B with regions filled with colour ramps: as `infer --paths N --fills linear`
-    /// and `--fills auto` draw it (swept, so the chart compares fills at equal file size).
+    /// SuperSVG-B with its regions filled otherwise than by default (ramps where they pay): as
+    /// `infer --paths N --fills linear` and `--fills flat` draw it (swept, so the chart
+    /// compares fills at equal file size).
     Fills,
 }
 
@@ -66,7 +67,7 @@ struct Args {
     out: PathBuf,
     /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
     /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`,
-    /// `IMAGE-paper-500.svg`, `IMAGE-optimizer-500.svg`, `IMAGE-linear-500.svg`, `IMAGE-fills-auto-500.svg`): the files `infer`
+    /// `IMAGE-paper-500.svg`, `IMAGE-optimizer-500.svg`, `IMAGE-linear-500.svg`, `IMAGE-flat-500.svg`): the files `infer`
     /// writes with the same settings.
     #[arg(long)]
     svgs: Option<PathBuf>,
@@ -247,8 +248,8 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         methods.push(Box::new(ours(Method::OursOptimizer, &regions_only, optimized)));
     }
     if args.wants(Peer::Fills) {
-        for (method, fills) in [(Method::OursLinear, Fills::Linear), (Method::OursFillsAuto, Fills::Auto)] {
-            methods.push(Box::new(ours(method, &models, Job { fills, ..job.clone() })));
+        for (method, fills) in [(Method::OursLinear, Fills::Linear), (Method::OursFlat, Fills::Flat)] {
+            methods.push(Box::new(ours(method, &models, Job { fills: Some(fills), ..job.clone() })));
         }
     }
     if use_vtracer {

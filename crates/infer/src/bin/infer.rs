@@ -104,8 +104,10 @@ struct Args {
     tolerance: Option<f32>,
     /// What regions are filled with: `flat` (each its mean colour), `linear` (a colour ramp
     /// where one fits), or `auto` (a ramp where it draws better than its bytes would as regions).
-    #[arg(long, default_value = "flat", value_parser = str::parse::<Fills>)]
-    fills: Fills,
+    /// Default: auto, but flat with --finetune-secs/--finetune-steps (after fine-tuning ramps
+    /// no longer pay for their bytes) and for flat art (icons, emoji).
+    #[arg(long, value_parser = str::parse::<Fills>)]
+    fills: Option<Fills>,
     /// The colour transparent pixels are composited over (`#rrggbb`); the SVG is opaque.
     #[arg(long, default_value = "#ffffff", value_parser = colour)]
     background: [f32; 3],
