@@ -13,7 +13,7 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
     let folder = dir.to_str().unwrap();
     let out = dir.join("report.md");
     // (flag and value, what stderr must name)
-    let cases: [(&[&str], &str); 16] = [
+    let cases: [(&[&str], &str); 17] = [
         (&["--paths", "0"], "--paths"),
         (&["--paths", "1"], "--paths"),
         (&["--paths", "1000000"], "--paths"),
@@ -30,6 +30,7 @@ fn wild_flag_values_are_refused_by_name_and_never_hang() {
         (&["--sweep", "64,x"], "--sweep"),
         (&["--operating-point", "paper"], "--peers paper"),
         (&["--operating-point", "0.9,0.2"], "--operating-point"),
+        (&["--fills", "radial"], "--fills"),
     ];
     for (flags, name) in cases {
         let mut child = Command::new(EVAL)
@@ -135,34 +136,47 @@ fn svgs_are_what_infer_writes() {
     std::fs::create_dir_all(&dir).unwrap();
     let picture = image::RgbImage::from_fn(60, 40, |x, y| image::Rgb([(x * 4) as u8, (y * 6) as u8, 120]));
     picture.save(dir.join("a.png")).unwrap();
-    let (out, svgs) = (dir.join("report.md"), dir.join("svgs"));
-    let result = Command::new(EVAL)
-        .arg(&dir)
-        .args(["--out", out.to_str().unwrap(), "--svgs", svgs.to_str().unwrap()])
-        .args(["--paths", "24", "--size", "48", "--peers", ""])
-        .env_remove("SUPERSVG_MODELS")
-        .output()
-        .unwrap();
-    assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
-
+    // Beside the folder, so that one run's report is not read as an image by the next.
+    let written_to = dir.with_extension("out");
+    let _ = std::fs::remove_dir_all(&written_to);
+    std::fs::create_dir_all(&written_to).unwrap();
+    let (out, svgs) = (written_to.join("report.md"), written_to.join("svgs"));
     let device = burn::tensor::Device::flex();
     let models = eval::load_models(None, None, &device).unwrap();
     let image = common::decode::load(&dir.join("a.png"), 48).unwrap();
-    let budgets = [
-        ("a-b-24.svg", infer::PathBudget::Count(24)),
-        ("a-auto.svg", infer::PathBudget::Auto(infer::AutoRule::default())),
-    ];
-    for (file, paths) in budgets {
-        let job = infer::Job { paths, ..infer::Job::default() };
-        let svg = infer::run(&models, &image, &job, &device).unwrap().svg;
-        let written = std::fs::read_to_string(svgs.join(file)).unwrap();
-        assert!(written == svg, "{file} differs from infer's SVG");
-        assert!(
-            written.contains("viewBox=\"0 0 60 40\"") && written.contains("<g class=\"region-"),
-            "{written}"
-        );
+    // infer's default fills, and the ones `--fills` names.
+    for (flags, fills) in [(&[][..], None), (&["--fills", "linear"][..], Some(infer::Fills::Linear))] {
+        let result = Command::new(EVAL)
+            .arg(&dir)
+            .args(["--out", out.to_str().unwrap(), "--svgs", svgs.to_str().unwrap()])
+            .args(["--paths", "24", "--size", "48", "--peers", ""])
+            .args(flags)
+            .env_remove("SUPERSVG_MODELS")
+            .output()
+            .unwrap();
+        assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+        let budgets = [
+            ("a-b-24.svg", infer::PathBudget::Count(24)),
+            ("a-auto.svg", infer::PathBudget::Auto(infer::AutoRule::default())),
+        ];
+        for (file, paths) in budgets {
+            let job = infer::Job { paths, fills, ..infer::Job::default() };
+            let svg = infer::run(&models, &image, &job, &device).unwrap().svg;
+            let written = std::fs::read_to_string(svgs.join(file)).unwrap();
+            assert!(written == svg, "{file} differs from infer's SVG ({flags:?})");
+            assert!(
+                written.contains("viewBox=\"0 0 60 40\"") && written.contains("<g class=\"region-"),
+                "{written}"
+            );
+        }
+        // A picture of ramps: with linear fills every drawing writes gradients.
+        if fills == Some(infer::Fills::Linear) {
+            let written = std::fs::read_to_string(svgs.join("a-b-24.svg")).unwrap();
+            assert!(written.contains("<linearGradient"), "{flags:?}: no gradient");
+        }
     }
     std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::remove_dir_all(&written_to).unwrap();
 }
 
 /// `--sweep` adds a rate–distortion section, SuperSVG-B and the fallback alone at each budget

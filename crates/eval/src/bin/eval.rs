@@ -104,6 +104,10 @@ struct Args {
     /// (`infer --tolerance`, 0 to 8), in every drawing of ours; by default traced polygons.
     #[arg(long)]
     tolerance: Option<f32>,
+    /// What SuperSVG's regions are filled with (`infer --fills`: `flat`, `linear` or `auto`),
+    /// in every drawing of ours but the `fills` peer's; by default `infer`'s default.
+    #[arg(long, value_parser = str::parse::<Fills>)]
+    fills: Option<Fills>,
 }
 
 /// One entry of `--peers`: a peer, or nothing (`--peers ''`).
@@ -142,7 +146,12 @@ impl Args {
         let finetune = self
             .finetune_secs
             .map(|s| FinetuneOptions { limit: Limit::Seconds(s), ..FinetuneOptions::default() });
-        let job = Job { tolerance: self.tolerance, operating_point: self.operating_point, ..Job::default() };
+        let job = Job {
+            tolerance: self.tolerance,
+            fills: self.fills,
+            operating_point: self.operating_point,
+            ..Job::default()
+        };
         for (flag, budgets) in [("--paths", &self.paths), ("--sweep", &self.sweep)] {
             for &paths in budgets.iter() {
                 let checked =
