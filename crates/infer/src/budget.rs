@@ -197,7 +197,7 @@ pub fn auto_budget(
 ) -> Result<AutoChoice, SlicError> {
     let max_paths = rule.max_paths.clamp(2, MAX_PATHS);
     let most = max_regions(image.width(), image.height());
-    let regions_for = |paths: usize| point.filling_regions(paths).clamp(1, paths - 1).min(most);
+    let regions_for = |paths: usize| regions_of(point, paths, image);
     let tree_for = |paths: usize| hierarchy(image, regions_for(paths), compactness);
     let mut tree = (AUTO_STAGE.min(max_paths), tree_for(AUTO_STAGE.min(max_paths))?);
     let flat = is_flat_art(&tree.1, image, point, rule);
@@ -232,7 +232,12 @@ fn is_flat_art(tree: &Hierarchy, image: &Rgb32FImage, point: &OperatingPoint, ru
 
 /// The regions [`is_flat_art`] reads: those of `rule.flat_paths` paths, as `point` splits them.
 fn flat_art_regions(image: &Rgb32FImage, point: &OperatingPoint, rule: &AutoRule) -> usize {
-    let paths = rule.flat_paths.max(2);
+    regions_of(point, rule.flat_paths.max(2), image)
+}
+
+/// The regions `paths` paths (at least 2) hold as `point` splits them: at least one, fewer than
+/// the paths, and at most `image`'s [`max_regions`].
+fn regions_of(point: &OperatingPoint, paths: usize, image: &Rgb32FImage) -> usize {
     point.filling_regions(paths).clamp(1, paths - 1).min(max_regions(image.width(), image.height()))
 }
 
