@@ -1,0 +1,336 @@
+//! How much a network that moves what is drawn could gain in one pass (issue 54's question),
+//! and how much a small learned one takes of it: measured in docs/eval/refine-room.md.
+//!
+//! A network that reads one region's box (target, canvas, the region's outline) and is trained
+//! on that box's error can at best predict the outline's own optimum with the rest of the
+//! drawing held as it is. This finds that optimum by optimization (Adam on the exact renderer,
+//! `--steps` steps, the region's points and flat colour, or its points only) for every region
+//! of a SuperSVG-B drawing, its outlines as drawn, and applies the moves as a batched network
+//! would — all from the same drawing, each scaled by `--damping` — or one region after another
+//! (`--one-by-one`: what a single pass cannot do, since each region then sees its neighbours'
+//! moves).
+//!
+//! With `--learn FOLDER` it also learns each point's move along its normal from the optimum's
+//! moves on the images in FOLDER ([`learn`]) and scores that network's one pass; `--save` and
+//! `--net` keep and reuse it; `--simplify` simplifies what moved before it is scored.
+//!
+//! `cargo run --release -p infer --example refine-room -- IMAGE... [--paths 500] [--steps 30]
+//!  [--damping 1] [--passes 1] [--one-by-one] [--points-only] [--fills F] [--decimals 1]
+//!  [--learn FOLDER [--epochs 20] [--save FILE] | --net FILE] [--simplify PX]`
+//!
+//! Prints, per image, B's PSNR and bytes as `infer` writes it, then B re-written and each
+//! pass's drawing: PSNR (exact renderer, points rounded to `--decimals` of a pixel as the SVG
+//! writes them) and the SVG's bytes (region groups, `--decimals`), the seconds the passes took,
+//! and the learned pass's; last, the means.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use burn::tensor::Device;
+use clap::Parser;
+use common::decode::load;
+use common::psnr_of_mse;
+use infer::{Fills, FinetuneOptions, Job, Models, PathBudget, Scene, run};
+use raster::{Fill, FlatAdam, Outline, Shape, SvgOptions, Window, to_svg_with};
+
+/// Measure the best one-pass move of every region of B's drawing.
+#[derive(Parser, Debug)]
+struct Args {
+    /// The images.
+    #[arg(required = true)]
+    images: Vec<PathBuf>,
+    /// Path budget of the SuperSVG-B drawing.
+    #[arg(long, default_value_t = 500)]
+    paths: usize,
+    /// Adam steps that find each region's optimum.
+    #[arg(long, default_value_t = 30)]
+    steps: usize,
+    /// The share of each region's move applied (a network may learn to damp what neighbours
+    /// will also move).
+    #[arg(long, default_value_t = 1.0)]
+    damping: f32,
+    /// Passes, each from the drawing the last one left.
+    #[arg(long, default_value_t = 1)]
+    passes: usize,
+    /// Move the regions one after another, each over its neighbours' moves.
+    #[arg(long)]
+    one_by_one: bool,
+    /// Decimals of a pixel the SVG writes (points are rounded to them before scoring).
+    #[arg(long, default_value_t = 1)]
+    decimals: usize,
+    /// B's fills (default: B's own).
+    #[arg(long)]
+    fills: Option<Fills>,
+    /// Move the points only, each region keeping its colour.
+    #[arg(long)]
+    points_only: bool,
+    /// Learn each point's move along its normal from the optimum moves of the images in this
+    /// folder (a small network over the point's profile), and score its one pass too.
+    #[arg(long)]
+    learn: Option<PathBuf>,
+    /// Simplify every moved straight contour within this many pixels (Douglas–Peucker).
+    #[arg(long)]
+    simplify: Option<f32>,
+    /// Write the learned network here.
+    #[arg(long)]
+    save: Option<PathBuf>,
+    /// Score this network (written by `--save`) instead of learning one.
+    #[arg(long)]
+    net: Option<PathBuf>,
+    /// Epochs of that learning.
+    #[arg(long, default_value_t = 20)]
+    epochs: usize,
+}
+
+mod learn;
+
+/// Pixels around an outline's hull that its box also scores.
+const PAD: i64 = 6;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = Args::parse();
+    let device = Device::flex();
+    let models = Models::bundled(true, &device)?;
+    let rates = FinetuneOptions::default();
+    let mut sums = vec![(0.0, 0.0); args.passes + 1];
+    let learned = match (&args.net, &args.learn) {
+        (Some(file), _) => Some(learn::Mlp::open(file)?),
+        (None, Some(folder)) => {
+            let mut mlp = learn::train(folder, &args, &models, &device, &rates)?;
+            if let Some(file) = &args.save {
+                mlp.save(file)?;
+            }
+            Some(mlp)
+        }
+        (None, None) => None,
+    };
+    if learned.is_some() {
+        sums.push((0.0, 0.0));
+    }
+    for image in &args.images {
+        let loaded = load(image, 512)?;
+        let job = Job { paths: PathBudget::Count(args.paths), fills: args.fills, ..Job::default() };
+        let drawn = run(&models, &loaded, &job, &device)?;
+        let room = Room::of(&drawn.scene);
+        let mut outlines = room.start(&drawn.scene);
+        let mut line =
+            format!("{}: B {:.3} dB {:.1} KB |", image.display(), drawn.report.psnr, kb(drawn.svg.len()));
+        let mut score =
+            |outlines: &[Outline], pass: usize, line: &mut String| -> Result<(), raster::SvgError> {
+                let size = (room.width as f32, room.height as f32);
+                let simple: Vec<Outline> = match (args.simplify, pass) {
+                    (Some(tolerance), 1..) => {
+                        outlines.iter().map(|o| learn::simplified(o, tolerance, size)).collect()
+                    }
+                    _ => outlines.to_vec(),
+                };
+                let (psnr, bytes) = room.score(&drawn.scene, &simple, loaded.original, args.decimals)?;
+                sums[pass].0 += psnr;
+                sums[pass].1 += kb(bytes);
+                *line += &format!(" {psnr:.3} dB {:.1} KB", kb(bytes));
+                Ok(())
+            };
+        score(&outlines, 0, &mut line)?;
+        let mut seconds = 0.0;
+        for pass in 1..=args.passes {
+            let started = Instant::now();
+            outlines = room.pass(&outlines, &args, &rates);
+            seconds += started.elapsed().as_secs_f64();
+            score(&outlines, pass, &mut line)?;
+        }
+        line += &format!(" ({seconds:.2} s)");
+        if let Some(mlp) = &learned {
+            let started = Instant::now();
+            let moved = learn::pass(mlp, &drawn.scene, &room.start(&drawn.scene));
+            let seconds = started.elapsed().as_secs_f64();
+            line += " | learned";
+            score(&moved, args.passes + 1, &mut line)?;
+            line += &format!(" ({seconds:.3} s)");
+        }
+        println!("{line}");
+    }
+    let n = args.images.len() as f64;
+    let means: Vec<String> = sums.iter().map(|(p, b)| format!("{:.3} dB {:.1} KB", p / n, b / n)).collect();
+    println!("mean: {}", means.join(" | "));
+    Ok(())
+}
+
+fn kb(bytes: usize) -> f64 {
+    bytes as f64 / 1000.0
+}
+
+/// The image as the exact renderer scores it.
+struct Room {
+    width: u32,
+    height: u32,
+    /// Planar RGB, `[3][height][width]`.
+    target: Vec<f32>,
+}
+
+/// A pixel box `[x0, y0, x1, y1)`.
+type PixelBox = [i64; 4];
+
+impl Room {
+    fn of(scene: &Scene) -> Self {
+        let image = scene.target();
+        let (width, height) = image.dimensions();
+        let target = (0..3).flat_map(|c| image.pixels().map(move |p| p.0[c])).collect();
+        Self { width, height, target }
+    }
+
+    /// B's shapes as outlines, as drawn.
+    fn start(&self, scene: &Scene) -> Vec<Outline> {
+        (scene.scene().iter())
+            .map(|shape| match shape {
+                Shape::Outline(outline) => (**outline).clone(),
+                Shape::Path(path) => Outline::from_path(path, path.color).expect("a drawn path"),
+            })
+            .collect()
+    }
+
+    /// The PSNR of `outlines` as the SVG writes them (points rounded to `decimals` of a pixel)
+    /// and the SVG's bytes at the image's own size.
+    fn score(
+        &self,
+        scene: &Scene,
+        outlines: &[Outline],
+        (width, height): (u32, u32),
+        decimals: usize,
+    ) -> Result<(f64, usize), raster::SvgError> {
+        let scale = 10f32.powi(decimals as i32);
+        let (w, h) = (width as f32, height as f32);
+        let rounded: Vec<Outline> = (outlines.iter())
+            .map(|o| {
+                let points: Vec<[f32; 2]> = (o.points().iter())
+                    .map(|p| [(p[0] * w * scale).round() / scale / w, (p[1] * h * scale).round() / scale / h])
+                    .collect();
+                o.with_points(&points)
+            })
+            .collect();
+        let mut drawing = scene.clone();
+        drawing.set_shapes(&rounded.iter().cloned().map(Shape::from).collect::<Vec<_>>());
+        let values = 3.0 * f64::from(self.width) * f64::from(self.height);
+        let layers: Vec<Option<u32>> = scene.paths().iter().map(|placed| placed.region).collect();
+        let svg =
+            to_svg_with(&rounded, &layers, width, height, &SvgOptions { decimals, ..SvgOptions::default() })?;
+        Ok((psnr_of_mse(drawing.total_error() / values), svg.len()))
+    }
+
+    /// The hull of `outline`'s points, in pixels, grown by [`PAD`] and clipped to the image.
+    fn pixel_box(&self, outline: &Outline) -> PixelBox {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let [mut x0, mut y0, mut x1, mut y1] = [f32::MAX, f32::MAX, f32::MIN, f32::MIN];
+        for [x, y] in outline.points() {
+            (x0, y0, x1, y1) = (x0.min(x * w), y0.min(y * h), x1.max(x * w), y1.max(y * h));
+        }
+        let (width, height) = (i64::from(self.width), i64::from(self.height));
+        let x0 = (x0.floor() as i64 - PAD).clamp(0, width - 1);
+        let y0 = (y0.floor() as i64 - PAD).clamp(0, height - 1);
+        [
+            x0,
+            y0,
+            (x1.ceil() as i64 + PAD).clamp(x0 + 1, width),
+            (y1.ceil() as i64 + PAD).clamp(y0 + 1, height),
+        ]
+    }
+
+    /// One pass: every region moved to its optimum over its box.
+    fn pass(&self, outlines: &[Outline], args: &Args, rates: &FinetuneOptions) -> Vec<Outline> {
+        let mut moved = outlines.to_vec();
+        for i in 0..outlines.len() {
+            let over = if args.one_by_one { &moved } else { outlines };
+            moved[i] = self.optimum(over, i, args, rates);
+        }
+        moved
+    }
+
+    /// Outline `i` of `outlines` moved (its points, and a flat colour unless `--points-only`;
+    /// `args.steps` Adam steps, the best state kept) against its box with every other outline
+    /// held, the move scaled by `args.damping`. A ramp keeps its stops and ends.
+    fn optimum(&self, outlines: &[Outline], i: usize, args: &Args, rates: &FinetuneOptions) -> Outline {
+        let [x0, y0, x1, y1] = self.pixel_box(&outlines[i]);
+        let (cw, ch) = ((x1 - x0) as usize, (y1 - y0) as usize);
+        let (w, h) = (self.width as f32, self.height as f32);
+        let (sx, sy) = (w / cw as f32, h / ch as f32);
+        let (ox, oy) = (x0 as f32 / cw as f32, y0 as f32 / ch as f32);
+        let to_box = |o: &Outline| mapped(o, |p| [p[0] * sx - ox, p[1] * sy - oy]);
+        let meets = |o: &Outline| {
+            let [a0, b0, a1, b1] = self.pixel_box(o);
+            a0 < x1 && a1 > x0 && b0 < y1 && b1 > y0
+        };
+        let below: Vec<Outline> = outlines[..i].iter().filter(|o| meets(o)).map(to_box).collect();
+        let mut scene: Vec<Outline> = vec![to_box(&outlines[i])];
+        scene.extend(outlines[i + 1..].iter().filter(|o| meets(o)).map(to_box));
+        let mut target = Vec::with_capacity(3 * cw * ch);
+        for c in 0..3 {
+            for y in y0..y1 {
+                let row = (c as i64 * i64::from(self.height) + y) * i64::from(self.width);
+                target.extend_from_slice(&self.target[(row + x0) as usize..(row + x1) as usize]);
+            }
+        }
+        let white =
+            Window::new(cw as u32, ch as u32, vec![1.0; target.len()], target.clone()).expect("a box");
+        let window = Window::new(cw as u32, ch as u32, white.render_outlines(&below), target).expect("a box");
+        // Parameters: the points (x, y), then RGB, then opacity; a pixel's step as F's.
+        let solid = match scene[0].fill {
+            Fill::Solid(color) => Some(color),
+            Fill::Linear(_) => None,
+        };
+        let points = scene[0].points();
+        let mut params: Vec<f32> = points.iter().flatten().copied().collect();
+        params.extend(solid.unwrap_or_default());
+        params.push(scene[0].alpha);
+        let start = params.clone();
+        let n = 2 * points.len();
+        let mut steps: Vec<f32> =
+            (0..n).map(|k| rates.lr_outline_points * if k % 2 == 0 { sx } else { sy }).collect();
+        let paint = if args.points_only || solid.is_none() { 0.0 } else { rates.lr_colors };
+        steps.extend([paint; 4]);
+        let set = |scene: &mut Vec<Outline>, params: &[f32]| {
+            let points: Vec<[f32; 2]> = params[..n].chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+            let mut outline = scene[0].with_points(&points);
+            if solid.is_some() {
+                outline.fill = Fill::Solid([params[n], params[n + 1], params[n + 2]]);
+            }
+            outline.alpha = params[n + 3];
+            scene[0] = outline;
+        };
+        let mut adam = FlatAdam::new(params.len());
+        let mut best = (f64::INFINITY, params.clone());
+        for step in 0..=args.steps {
+            set(&mut scene, &params);
+            if step == args.steps {
+                if window.l2_outlines(&scene) < best.0 {
+                    best.1 = params.clone();
+                }
+                break;
+            }
+            let (loss, gradients) = window.l2_gradient_outlines(&scene);
+            if loss < best.0 {
+                best = (loss, params.clone());
+            }
+            let g = &gradients[0];
+            let mut flat: Vec<f32> = g.points.iter().flatten().copied().collect();
+            flat.extend(g.color);
+            flat.push(g.alpha);
+            adam.step(&steps, &mut params, &flat);
+            for value in &mut params[n..] {
+                *value = value.clamp(0.0, 1.0);
+            }
+        }
+        let chosen: Vec<f32> = start.iter().zip(&best.1).map(|(s, b)| s + args.damping * (b - s)).collect();
+        set(&mut scene, &chosen);
+        mapped(&scene[0], |p| [(p[0] + ox) / sx, (p[1] + oy) / sy])
+    }
+}
+
+/// `outline` with its points and a ramp's ends mapped by `f` (its fill and opacity kept).
+fn mapped(outline: &Outline, f: impl Fn([f32; 2]) -> [f32; 2]) -> Outline {
+    let points: Vec<[f32; 2]> = outline.points().into_iter().map(&f).collect();
+    let mut moved = outline.with_points(&points);
+    if let Fill::Linear(mut ramp) = outline.fill {
+        (ramp.start, ramp.end) = (f(ramp.start), f(ramp.end));
+        moved.fill = Fill::Linear(ramp);
+    }
+    moved
+}
