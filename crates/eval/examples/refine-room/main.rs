@@ -14,9 +14,9 @@
 //! moves on the images in FOLDER ([`learn`]) and scores that network's one pass; `--save` and
 //! `--net` keep and reuse it; `--simplify` simplifies what moved before it is scored.
 //!
-//! `cargo run --release -p infer --example refine-room -- IMAGE... [--paths 500] [--steps 30]
+//! `cargo run --release -p eval --example refine-room -- IMAGE... [--paths 500] [--steps 30]
 //!  [--damping 1] [--passes 1] [--one-by-one] [--points-only] [--fills F] [--decimals 1]
-//!  [--learn FOLDER [--epochs 20] [--save FILE] | --net FILE] [--simplify PX]`
+//!  [--learn FOLDER [--epochs 20] [--save FILE] | --net FILE] [--simplify PX] [--lpips]`
 //!
 //! Prints, per image, B's PSNR and bytes as `infer` writes it, then B re-written and each
 //! pass's drawing: PSNR (exact renderer, points rounded to `--decimals` of a pixel as the SVG
@@ -30,6 +30,7 @@ use burn::tensor::Device;
 use clap::Parser;
 use common::decode::load;
 use common::psnr_of_mse;
+use eval::{Lpips, render_svg};
 use infer::{Fills, FinetuneOptions, Job, Models, PathBudget, Scene, run};
 use raster::{Fill, FlatAdam, Outline, Shape, SvgOptions, Window, to_svg_with};
 
@@ -77,6 +78,10 @@ struct Args {
     /// Score this network (written by `--save`) instead of learning one.
     #[arg(long)]
     net: Option<PathBuf>,
+    /// Also score LPIPS (eval's, of resvg's rendering of the SVG; weights from `$SUPERSVG_LPIPS`
+    /// or models/lpips).
+    #[arg(long)]
+    lpips: bool,
     /// Epochs of that learning.
     #[arg(long, default_value_t = 20)]
     epochs: usize,
@@ -92,7 +97,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let device = Device::flex();
     let models = Models::bundled(true, &device)?;
     let rates = FinetuneOptions::default();
-    let mut sums = vec![(0.0, 0.0); args.passes + 1];
+    let lpips = if args.lpips { Some(Lpips::load(&Lpips::default_folder(), &device)?) } else { None };
+    let mut sums = vec![(0.0, 0.0, 0.0); args.passes + 1];
     let learned = match (&args.net, &args.learn) {
         (Some(file), _) => Some(learn::Mlp::open(file)?),
         (None, Some(folder)) => {
@@ -105,7 +111,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (None, None) => None,
     };
     if learned.is_some() {
-        sums.push((0.0, 0.0));
+        sums.push((0.0, 0.0, 0.0));
     }
     for image in &args.images {
         let loaded = load(image, 512)?;
@@ -115,21 +121,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut outlines = room.start(&drawn.scene);
         let mut line =
             format!("{}: B {:.3} dB {:.1} KB |", image.display(), drawn.report.psnr, kb(drawn.svg.len()));
-        let mut score =
-            |outlines: &[Outline], pass: usize, line: &mut String| -> Result<(), raster::SvgError> {
-                let size = (room.width as f32, room.height as f32);
-                let simple: Vec<Outline> = match (args.simplify, pass) {
-                    (Some(tolerance), 1..) => {
-                        outlines.iter().map(|o| learn::simplified(o, tolerance, size)).collect()
-                    }
-                    _ => outlines.to_vec(),
-                };
-                let (psnr, bytes) = room.score(&drawn.scene, &simple, loaded.original, args.decimals)?;
-                sums[pass].0 += psnr;
-                sums[pass].1 += kb(bytes);
-                *line += &format!(" {psnr:.3} dB {:.1} KB", kb(bytes));
-                Ok(())
+        let mut score = |outlines: &[Outline],
+                         pass: usize,
+                         line: &mut String|
+         -> Result<(), Box<dyn std::error::Error>> {
+            let size = (room.width as f32, room.height as f32);
+            let simple: Vec<Outline> = match (args.simplify, pass) {
+                (Some(tolerance), 1..) => {
+                    outlines.iter().map(|o| learn::simplified(o, tolerance, size)).collect()
+                }
+                _ => outlines.to_vec(),
             };
+            let (psnr, svg) = room.score(&drawn.scene, &simple, loaded.original, args.decimals)?;
+            sums[pass].0 += psnr;
+            sums[pass].1 += kb(svg.len());
+            *line += &format!(" {psnr:.3} dB {:.1} KB", kb(svg.len()));
+            if let Some(net) = &lpips {
+                let (width, height) = loaded.image.dimensions();
+                let distance = net.distance(&render_svg(&svg, width, height)?, &loaded.image);
+                sums[pass].2 += distance;
+                *line += &format!(" LPIPS {distance:.4}");
+            }
+            Ok(())
+        };
         score(&outlines, 0, &mut line)?;
         let mut seconds = 0.0;
         for pass in 1..=args.passes {
@@ -150,7 +164,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("{line}");
     }
     let n = args.images.len() as f64;
-    let means: Vec<String> = sums.iter().map(|(p, b)| format!("{:.3} dB {:.1} KB", p / n, b / n)).collect();
+    let means: Vec<String> = (sums.iter())
+        .map(|(p, b, l)| match lpips {
+            Some(_) => format!("{:.3} dB {:.1} KB LPIPS {:.4}", p / n, b / n, l / n),
+            None => format!("{:.3} dB {:.1} KB", p / n, b / n),
+        })
+        .collect();
     println!("mean: {}", means.join(" | "));
     Ok(())
 }
@@ -196,7 +215,7 @@ impl Room {
         outlines: &[Outline],
         (width, height): (u32, u32),
         decimals: usize,
-    ) -> Result<(f64, usize), raster::SvgError> {
+    ) -> Result<(f64, String), raster::SvgError> {
         let scale = 10f32.powi(decimals as i32);
         let (w, h) = (width as f32, height as f32);
         let rounded: Vec<Outline> = (outlines.iter())
@@ -213,7 +232,7 @@ impl Room {
         let layers: Vec<Option<u32>> = scene.paths().iter().map(|placed| placed.region).collect();
         let svg =
             to_svg_with(&rounded, &layers, width, height, &SvgOptions { decimals, ..SvgOptions::default() })?;
-        Ok((psnr_of_mse(drawing.total_error() / values), svg.len()))
+        Ok((psnr_of_mse(drawing.total_error() / values), svg))
     }
 
     /// The hull of `outline`'s points, in pixels, grown by [`PAD`] and clipped to the image.
