@@ -13,7 +13,8 @@ use infer::{FinetuneOptions, Job, Models, PathBudget, Scene, run};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use raster::{Outline, Segment};
+use raster::{Outline, Segment, Shape};
+use rayon::prelude::*;
 
 use crate::{Args, Room};
 
@@ -58,14 +59,14 @@ impl Mlp {
         let mut h1 = [0.0; HIDDEN];
         for (j, h) in h1.iter_mut().enumerate() {
             let row = &self.w1[j * FEATURES..(j + 1) * FEATURES];
-            *h = (row.iter().zip(x).map(|(w, v)| w * v).sum::<f32>() + self.b1[j]).max(0.0);
+            *h = (dot(row, x) + self.b1[j]).max(0.0);
         }
         let mut h2 = [0.0; HIDDEN];
         for (j, h) in h2.iter_mut().enumerate() {
             let row = &self.w2[j * HIDDEN..(j + 1) * HIDDEN];
-            *h = (row.iter().zip(&h1).map(|(w, v)| w * v).sum::<f32>() + self.b2[j]).max(0.0);
+            *h = (dot(row, &h1) + self.b2[j]).max(0.0);
         }
-        let y = self.w3.iter().zip(&h2).map(|(w, v)| w * v).sum::<f32>() + self.b3;
+        let y = dot(&self.w3, &h2) + self.b3;
         (h1, h2, y)
     }
 
@@ -83,6 +84,19 @@ impl Mlp {
             std::slice::from_mut(&mut self.b3),
         ]
     }
+}
+
+/// `a · b` summed in eight lanes, which the compiler keeps in vector registers.
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let mut lanes = [0.0f32; 8];
+    let (a8, b8) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f32 = a8.remainder().iter().zip(b8.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in a8.zip(b8) {
+        for k in 0..8 {
+            lanes[k] += x[k] * y[k];
+        }
+    }
+    lanes.iter().sum::<f32>() + tail
 }
 
 /// One sample: a point's profile and its optimum move along the normal.
@@ -147,9 +161,12 @@ fn features(target: &Rgb32FImage, canvas: &Rgb32FImage, p: [f32; 2], n: [f32; 2]
     x
 }
 
-/// The optimum moves of every point of B's drawings of the images in `folder`, learned.
+/// The optimum moves of every point of B's drawings of the images in `folder`, learned: the
+/// drawings as `before` leaves them (one pass of each network in turn), so that the network
+/// learned is the next pass.
 pub fn train(
     folder: &Path,
+    before: &[Mlp],
     args: &Args,
     models: &Models,
     device: &Device,
@@ -164,11 +181,15 @@ pub fn train(
         let job = Job { paths: PathBudget::Count(args.paths), fills: args.fills, ..Job::default() };
         let drawn = run(models, &loaded, &job, device)?;
         let room = Room::of(&drawn.scene);
-        let start = room.start(&drawn.scene);
+        let (mut drawing, mut start) = (drawn.scene.clone(), room.start(&drawn.scene));
+        for mlp in before {
+            start = pass(mlp, &drawing, &start);
+            drawing.set_shapes(&start.iter().cloned().map(Shape::from).collect::<Vec<_>>());
+        }
         let moved = room.pass(&start, args, rates);
-        let before = samples.len();
-        collect(&drawn.scene, &start, &moved, &mut samples);
-        eprintln!("{}: {} points", file.display(), samples.len() - before);
+        let count = samples.len();
+        collect(&drawing, &start, &moved, &mut samples);
+        eprintln!("{}: {} points", file.display(), samples.len() - count);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(54);
     samples.shuffle(&mut rng);
@@ -219,7 +240,7 @@ pub fn pass(mlp: &Mlp, scene: &Scene, outlines: &[Outline]) -> Vec<Outline> {
     let canvas = scene.canvas_image();
     let size = (target.width() as f32, target.height() as f32);
     outlines
-        .iter()
+        .par_iter()
         .map(|outline| {
             let points: Vec<[f32; 2]> = frames(outline, size)
                 .into_iter()

@@ -16,7 +16,7 @@
 //!
 //! `cargo run --release -p eval --example refine-room -- IMAGE... [--paths 500] [--steps 30]
 //!  [--damping 1] [--passes 1] [--one-by-one] [--points-only] [--fills F] [--decimals 1]
-//!  [--learn FOLDER [--epochs 20] [--save FILE] | --net FILE] [--simplify PX] [--lpips]`
+//!  [--net FILE]... [--learn FOLDER [--epochs 20] [--save FILE]] [--learned-passes 1] [--simplify PX] [--lpips]`
 //!
 //! Prints, per image, B's PSNR and bytes as `infer` writes it, then B re-written and each
 //! pass's drawing: PSNR (exact renderer, points rounded to `--decimals` of a pixel as the SVG
@@ -66,18 +66,22 @@ struct Args {
     #[arg(long)]
     points_only: bool,
     /// Learn each point's move along its normal from the optimum moves of the images in this
-    /// folder (a small network over the point's profile), and score its one pass too.
+    /// folder (a small network over the point's profile), and score its pass too.
     #[arg(long)]
     learn: Option<PathBuf>,
     /// Simplify every moved straight contour within this many pixels (Douglas–Peucker).
     #[arg(long)]
     simplify: Option<f32>,
+    /// Passes of the learned network, each over the drawing the last one left.
+    #[arg(long, default_value_t = 1)]
+    learned_passes: usize,
     /// Write the learned network here.
     #[arg(long)]
     save: Option<PathBuf>,
-    /// Score this network (written by `--save`) instead of learning one.
+    /// The networks (written by `--save`) of the learned passes, in order (the last repeats);
+    /// `--learn` learns the pass after them.
     #[arg(long)]
-    net: Option<PathBuf>,
+    net: Vec<PathBuf>,
     /// Also score LPIPS (eval's, of resvg's rendering of the SVG; weights from `$SUPERSVG_LPIPS`
     /// or models/lpips).
     #[arg(long)]
@@ -99,19 +103,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rates = FinetuneOptions::default();
     let lpips = if args.lpips { Some(Lpips::load(&Lpips::default_folder(), &device)?) } else { None };
     let mut sums = vec![(0.0, 0.0, 0.0); args.passes + 1];
-    let learned = match (&args.net, &args.learn) {
-        (Some(file), _) => Some(learn::Mlp::open(file)?),
-        (None, Some(folder)) => {
-            let mut mlp = learn::train(folder, &args, &models, &device, &rates)?;
-            if let Some(file) = &args.save {
-                mlp.save(file)?;
-            }
-            Some(mlp)
+    let mut learned = (args.net.iter()).map(|file| learn::Mlp::open(file)).collect::<Result<Vec<_>, _>>()?;
+    if let Some(folder) = &args.learn {
+        let mut mlp = learn::train(folder, &learned, &args, &models, &device, &rates)?;
+        if let Some(file) = &args.save {
+            mlp.save(file)?;
         }
-        (None, None) => None,
-    };
-    if learned.is_some() {
-        sums.push((0.0, 0.0, 0.0));
+        learned.push(mlp);
+    }
+    if !learned.is_empty() {
+        sums.extend(std::iter::repeat_n((0.0, 0.0, 0.0), args.learned_passes));
     }
     for image in &args.images {
         let loaded = load(image, 512)?;
@@ -153,13 +154,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             score(&outlines, pass, &mut line)?;
         }
         line += &format!(" ({seconds:.2} s)");
-        if let Some(mlp) = &learned {
-            let started = Instant::now();
-            let moved = learn::pass(mlp, &drawn.scene, &room.start(&drawn.scene));
-            let seconds = started.elapsed().as_secs_f64();
+        if let Some(last) = learned.last() {
             line += " | learned";
-            score(&moved, args.passes + 1, &mut line)?;
-            line += &format!(" ({seconds:.3} s)");
+            let (mut drawing, mut moved) = (drawn.scene.clone(), room.start(&drawn.scene));
+            for pass in 1..=args.learned_passes {
+                let started = Instant::now();
+                moved = learn::pass(learned.get(pass - 1).unwrap_or(last), &drawing, &moved);
+                let seconds = started.elapsed().as_secs_f64();
+                score(&moved, args.passes + pass, &mut line)?;
+                line += &format!(" ({seconds:.3} s)");
+                drawing.set_shapes(&moved.iter().cloned().map(Shape::from).collect::<Vec<_>>());
+            }
         }
         println!("{line}");
     }
