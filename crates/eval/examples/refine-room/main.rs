@@ -16,7 +16,7 @@
 //!
 //! `cargo run --release -p eval --example refine-room -- IMAGE... [--paths 500] [--steps 30]
 //!  [--damping 1] [--passes 1] [--one-by-one] [--points-only] [--fills F] [--decimals 1]
-//!  [--net FILE]... [--learn FOLDER [--epochs 20] [--save FILE]] [--learned-passes 1] [--simplify PX] [--lpips]`
+//!  [--net FILE]... [--learn FOLDER [--epochs 20] [--save FILE]] [--learned-passes 1] [--finetune-secs S] [--simplify PX] [--lpips]`
 //!
 //! Prints, per image, B's PSNR and bytes as `infer` writes it, then B re-written and each
 //! pass's drawing: PSNR (exact renderer, points rounded to `--decimals` of a pixel as the SVG
@@ -31,7 +31,7 @@ use clap::Parser;
 use common::decode::load;
 use common::psnr_of_mse;
 use eval::{Lpips, render_svg};
-use infer::{Fills, FinetuneOptions, Job, Models, PathBudget, Scene, run};
+use infer::{Fills, FinetuneOptions, Job, Limit, Models, PathBudget, Scene, finetune, run};
 use raster::{Fill, FlatAdam, Outline, Shape, SvgOptions, Window, to_svg_with};
 
 /// Measure the best one-pass move of every region of B's drawing.
@@ -75,6 +75,10 @@ struct Args {
     /// Passes of the learned network, each over the drawing the last one left.
     #[arg(long, default_value_t = 1)]
     learned_passes: usize,
+    /// Also fine-tune (SuperSVG-F) for this many seconds from the learned passes' drawing, and
+    /// from B for as long and for twice as long.
+    #[arg(long)]
+    finetune_secs: Option<f64>,
     /// Write the learned network here.
     #[arg(long)]
     save: Option<PathBuf>,
@@ -103,6 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rates = FinetuneOptions::default();
     let lpips = if args.lpips { Some(Lpips::load(&Lpips::default_folder(), &device)?) } else { None };
     let mut sums = vec![(0.0, 0.0, 0.0); args.passes + 1];
+    let mut finetuned = [0.0; 3];
     let mut learned = (args.net.iter()).map(|file| learn::Mlp::open(file)).collect::<Result<Vec<_>, _>>()?;
     if let Some(folder) = &args.learn {
         let mut mlp = learn::train(folder, &learned, &args, &models, &device, &rates)?;
@@ -165,6 +170,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 line += &format!(" ({seconds:.3} s)");
                 drawing.set_shapes(&moved.iter().cloned().map(Shape::from).collect::<Vec<_>>());
             }
+            if let Some(seconds) = args.finetune_secs {
+                let psnr_after = |scene: &Scene, seconds: f64| {
+                    let mut scene = scene.clone();
+                    finetune(
+                        &mut scene,
+                        &FinetuneOptions { limit: Limit::Seconds(seconds), ..rates.clone() },
+                    );
+                    let values = 3.0 * f64::from(room.width) * f64::from(room.height);
+                    psnr_of_mse(scene.total_error() / values)
+                };
+                let f = [
+                    psnr_after(&drawn.scene, seconds),
+                    psnr_after(&drawn.scene, 2.0 * seconds),
+                    psnr_after(&drawing, seconds),
+                ];
+                line += &format!(
+                    " | F from B {seconds} s {:.3}, {} s {:.3}; F from the learned pass {seconds} s {:.3}",
+                    f[0],
+                    2.0 * seconds,
+                    f[1],
+                    f[2]
+                );
+                finetuned.iter_mut().zip(f).for_each(|(sum, psnr)| *sum += psnr);
+            }
         }
         println!("{line}");
     }
@@ -176,6 +205,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     println!("mean: {}", means.join(" | "));
+    if args.finetune_secs.is_some() {
+        let [a, b, c] = finetuned.map(|sum| sum / n);
+        println!("mean F: from B {a:.3}, twice as long {b:.3}; from the learned pass {c:.3}");
+    }
     Ok(())
 }
 
