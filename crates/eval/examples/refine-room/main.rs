@@ -15,7 +15,7 @@
 //! `--net` keep and reuse it; `--simplify` simplifies what moved before it is scored.
 //!
 //! `cargo run --release -p eval --example refine-room -- IMAGE... [--paths 500] [--steps 30]
-//!  [--damping 1] [--passes 1] [--one-by-one] [--points-only] [--fills F] [--decimals 1]
+//!  [--damping 1] [--passes 1] [--one-by-one | --shared] [--points-only] [--fills F] [--decimals 1]
 //!  [--net FILE]... [--learn FOLDER [--epochs 20] [--save FILE]] [--learned-passes 1] [--finetune-secs S] [--simplify PX] [--lpips]`
 //!
 //! Prints, per image, B's PSNR and bytes as `infer` writes it, then B re-written and each
@@ -53,6 +53,9 @@ struct Args {
     /// Passes, each from the drawing the last one left.
     #[arg(long, default_value_t = 1)]
     passes: usize,
+    /// Move each point that several outlines share by the mean of their moves.
+    #[arg(long)]
+    shared: bool,
     /// Move the regions one after another, each over its neighbours' moves.
     #[arg(long)]
     one_by_one: bool,
@@ -298,6 +301,9 @@ impl Room {
             let over = if args.one_by_one { &moved } else { outlines };
             moved[i] = self.optimum(over, i, args, rates);
         }
+        if args.shared {
+            shared_moves(outlines, &mut moved);
+        }
         moved
     }
 
@@ -378,6 +384,38 @@ impl Room {
         let chosen: Vec<f32> = start.iter().zip(&best.1).map(|(s, b)| s + args.damping * (b - s)).collect();
         set(&mut scene, &chosen);
         mapped(&scene[0], |p| [(p[0] + ox) / sx, (p[1] + oy) / sy])
+    }
+}
+
+/// Every point that several outlines share where they start (a boundary point drawn once for
+/// each region it bounds) moved by the mean of their moves, so that neighbours agree on their
+/// common edge.
+fn shared_moves(start: &[Outline], moved: &mut [Outline]) {
+    use std::collections::HashMap;
+    let key = |p: [f32; 2]| (p[0].to_bits(), p[1].to_bits());
+    let mut sums: HashMap<(u32, u32), ([f64; 2], usize)> = HashMap::new();
+    let points: Vec<(Vec<[f32; 2]>, Vec<[f32; 2]>)> =
+        start.iter().zip(moved.iter()).map(|(a, b)| (a.points(), b.points())).collect();
+    for (before, after) in &points {
+        for (p, q) in before.iter().zip(after) {
+            let entry = sums.entry(key(*p)).or_insert(([0.0; 2], 0));
+            entry.0[0] += f64::from(q[0] - p[0]);
+            entry.0[1] += f64::from(q[1] - p[1]);
+            entry.1 += 1;
+        }
+    }
+    for ((before, _), outline) in points.iter().zip(moved.iter_mut()) {
+        let agreed: Vec<[f32; 2]> = (before.iter())
+            .map(|p| {
+                let (sum, count) = sums[&key(*p)];
+                [p[0] + (sum[0] / count as f64) as f32, p[1] + (sum[1] / count as f64) as f32]
+            })
+            .collect();
+        let fill = outline.fill;
+        let alpha = outline.alpha;
+        *outline = outline.with_points(&agreed);
+        outline.fill = fill;
+        outline.alpha = alpha;
     }
 }
 
