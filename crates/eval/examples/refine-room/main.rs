@@ -394,8 +394,9 @@ fn shared_moves(start: &[Outline], moved: &mut [Outline]) {
     use std::collections::HashMap;
     let key = |p: [f32; 2]| (p[0].to_bits(), p[1].to_bits());
     let mut sums: HashMap<(u32, u32), ([f64; 2], usize)> = HashMap::new();
-    let points: Vec<(Vec<[f32; 2]>, Vec<[f32; 2]>)> =
-        start.iter().zip(moved.iter()).map(|(a, b)| (a.points(), b.points())).collect();
+    // Each outline's points before and after its move.
+    type Moves = (Vec<[f32; 2]>, Vec<[f32; 2]>);
+    let points: Vec<Moves> = start.iter().zip(moved.iter()).map(|(a, b)| (a.points(), b.points())).collect();
     for (before, after) in &points {
         for (p, q) in before.iter().zip(after) {
             let entry = sums.entry(key(*p)).or_insert(([0.0; 2], 0));
