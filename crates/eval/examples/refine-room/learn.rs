@@ -302,7 +302,8 @@ fn gradients<'a>(mlp: &Mlp, batch: impl Iterator<Item = &'a Sample>) -> Vec<Vec<
     g
 }
 
-/// Adam's moments of every parameter.
+/// Adam's moments of every parameter: raster's `FlatAdam` keeps values in [0, 1], which
+/// weights are not.
 struct Adam {
     moments: Vec<Vec<(f32, f32)>>,
     steps: i32,
@@ -410,15 +411,19 @@ impl Mlp {
         std::fs::write(file, bytes)
     }
 
-    /// The network [`Mlp::save`] wrote.
+    /// The network [`Mlp::save`] wrote to `file`.
     pub fn open(file: &Path) -> std::io::Result<Self> {
         let bytes = std::fs::read(file)?;
         let mut mlp = Self::new(&mut ChaCha8Rng::seed_from_u64(0));
+        let count: usize = mlp.params().iter().map(|p| p.len()).sum();
+        if bytes.len() != 4 * count {
+            let problem =
+                format!("{}: {} bytes, not the {} of this network", file.display(), bytes.len(), 4 * count);
+            return Err(std::io::Error::other(problem));
+        }
         let mut values = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]));
         for params in mlp.params() {
-            for p in params.iter_mut() {
-                *p = values.next().ok_or_else(|| std::io::Error::other("too short"))?;
-            }
+            params.iter_mut().zip(&mut values).for_each(|(p, v)| *p = v);
         }
         Ok(mlp)
     }

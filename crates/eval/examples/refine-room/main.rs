@@ -28,11 +28,12 @@ use std::time::Instant;
 
 use burn::tensor::Device;
 use clap::Parser;
+use common::PixelBox;
 use common::decode::load;
 use common::psnr_of_mse;
 use eval::{Lpips, render_svg};
 use infer::{Fills, FinetuneOptions, Job, Limit, Models, PathBudget, Scene, finetune, run};
-use raster::{Fill, FlatAdam, Outline, Shape, SvgOptions, Window, to_svg_with};
+use raster::{Fill, Filled, FlatAdam, Outline, Shape, SvgOptions, Window, to_svg_with};
 
 /// Measure the best one-pass move of every region of B's drawing.
 #[derive(Parser, Debug)]
@@ -100,8 +101,8 @@ struct Args {
 
 mod learn;
 
-/// Pixels around an outline's hull that its box also scores.
-const PAD: i64 = 6;
+/// Pixels around what an outline can change that its box also scores.
+const PAD: u32 = 5;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
@@ -227,9 +228,6 @@ struct Room {
     target: Vec<f32>,
 }
 
-/// A pixel box `[x0, y0, x1, y1)`.
-type PixelBox = [i64; 4];
-
 impl Room {
     fn of(scene: &Scene) -> Self {
         let image = scene.target();
@@ -276,30 +274,22 @@ impl Room {
         Ok((psnr_of_mse(drawing.total_error() / values), svg))
     }
 
-    /// The hull of `outline`'s points, in pixels, grown by [`PAD`] and clipped to the image.
-    fn pixel_box(&self, outline: &Outline) -> PixelBox {
-        let (w, h) = (self.width as f32, self.height as f32);
-        let [mut x0, mut y0, mut x1, mut y1] = [f32::MAX, f32::MAX, f32::MIN, f32::MIN];
-        for [x, y] in outline.points() {
-            (x0, y0, x1, y1) = (x0.min(x * w), y0.min(y * h), x1.max(x * w), y1.max(y * h));
-        }
-        let (width, height) = (i64::from(self.width), i64::from(self.height));
-        let x0 = (x0.floor() as i64 - PAD).clamp(0, width - 1);
-        let y0 = (y0.floor() as i64 - PAD).clamp(0, height - 1);
-        [
-            x0,
-            y0,
-            (x1.ceil() as i64 + PAD).clamp(x0 + 1, width),
-            (y1.ceil() as i64 + PAD).clamp(y0 + 1, height),
-        ]
+    /// The pixels `outline` can change, grown by [`PAD`] within the image: the box its move is
+    /// scored over. `None` when it has no finite point.
+    fn pixel_box(&self, outline: &Outline) -> Option<PixelBox> {
+        Some(outline.pixel_box(self.width, self.height)?.padded(PAD, self.width, self.height))
     }
 
     /// One pass: every region moved to its optimum over its box.
     fn pass(&self, outlines: &[Outline], args: &Args, rates: &FinetuneOptions) -> Vec<Outline> {
         let mut moved = outlines.to_vec();
+        let mut boxes: Vec<Option<PixelBox>> = outlines.iter().map(|o| self.pixel_box(o)).collect();
         for i in 0..outlines.len() {
             let over = if args.one_by_one { &moved } else { outlines };
-            moved[i] = self.optimum(over, i, args, rates);
+            moved[i] = self.optimum(over, &boxes, i, args, rates);
+            if args.one_by_one {
+                boxes[i] = self.pixel_box(&moved[i]);
+            }
         }
         if args.shared {
             shared_moves(outlines, &mut moved);
@@ -309,26 +299,36 @@ impl Room {
 
     /// Outline `i` of `outlines` moved (its points, and a flat colour unless `--points-only`;
     /// `args.steps` Adam steps, the best state kept) against its box with every other outline
-    /// held, the move scaled by `args.damping`. A ramp keeps its stops and ends.
-    fn optimum(&self, outlines: &[Outline], i: usize, args: &Args, rates: &FinetuneOptions) -> Outline {
-        let [x0, y0, x1, y1] = self.pixel_box(&outlines[i]);
-        let (cw, ch) = ((x1 - x0) as usize, (y1 - y0) as usize);
+    /// held, the move scaled by `args.damping`; `boxes` are the outlines' [`Room::pixel_box`]es.
+    /// A ramp keeps its stops and ends; an outline without a box stays as it is.
+    fn optimum(
+        &self,
+        outlines: &[Outline],
+        boxes: &[Option<PixelBox>],
+        i: usize,
+        args: &Args,
+        rates: &FinetuneOptions,
+    ) -> Outline {
+        let Some(bbox) = boxes[i] else { return outlines[i].clone() };
+        let (cw, ch) = (bbox.width() as usize, bbox.height() as usize);
         let (w, h) = (self.width as f32, self.height as f32);
         let (sx, sy) = (w / cw as f32, h / ch as f32);
-        let (ox, oy) = (x0 as f32 / cw as f32, y0 as f32 / ch as f32);
+        let (ox, oy) = (bbox.x0() as f32 / cw as f32, bbox.y0() as f32 / ch as f32);
         let to_box = |o: &Outline| mapped(o, |p| [p[0] * sx - ox, p[1] * sy - oy]);
-        let meets = |o: &Outline| {
-            let [a0, b0, a1, b1] = self.pixel_box(o);
-            a0 < x1 && a1 > x0 && b0 < y1 && b1 > y0
+        let meeting = |range: std::ops::Range<usize>| -> Vec<Outline> {
+            (range.filter(|&k| boxes[k].is_some_and(|other| other.intersection(&bbox).is_some())))
+                .map(|k| to_box(&outlines[k]))
+                .collect()
         };
-        let below: Vec<Outline> = outlines[..i].iter().filter(|o| meets(o)).map(to_box).collect();
+        let below = meeting(0..i);
         let mut scene: Vec<Outline> = vec![to_box(&outlines[i])];
-        scene.extend(outlines[i + 1..].iter().filter(|o| meets(o)).map(to_box));
+        scene.extend(meeting(i + 1..outlines.len()));
         let mut target = Vec::with_capacity(3 * cw * ch);
+        let (width, height) = (self.width as usize, self.height as usize);
         for c in 0..3 {
-            for y in y0..y1 {
-                let row = (c as i64 * i64::from(self.height) + y) * i64::from(self.width);
-                target.extend_from_slice(&self.target[(row + x0) as usize..(row + x1) as usize]);
+            for y in bbox.rows() {
+                let row = (c * height + y as usize) * width;
+                target.extend_from_slice(&self.target[row + bbox.x0() as usize..row + bbox.x1() as usize]);
             }
         }
         let white =
@@ -358,16 +358,11 @@ impl Room {
             outline.alpha = params[n + 3];
             scene[0] = outline;
         };
+        // Adam keeps every value in [0, 1]: the points within the box, colour and opacity.
         let mut adam = FlatAdam::new(params.len());
         let mut best = (f64::INFINITY, params.clone());
-        for step in 0..=args.steps {
+        for _ in 0..args.steps {
             set(&mut scene, &params);
-            if step == args.steps {
-                if window.l2_outlines(&scene) < best.0 {
-                    best.1 = params.clone();
-                }
-                break;
-            }
             let (loss, gradients) = window.l2_gradient_outlines(&scene);
             if loss < best.0 {
                 best = (loss, params.clone());
@@ -377,9 +372,10 @@ impl Room {
             flat.extend(g.color);
             flat.push(g.alpha);
             adam.step(&steps, &mut params, &flat);
-            for value in &mut params[n..] {
-                *value = value.clamp(0.0, 1.0);
-            }
+        }
+        set(&mut scene, &params);
+        if window.l2_outlines(&scene) < best.0 {
+            best.1 = params.clone();
         }
         let chosen: Vec<f32> = start.iter().zip(&best.1).map(|(s, b)| s + args.damping * (b - s)).collect();
         set(&mut scene, &chosen);
@@ -412,11 +408,7 @@ fn shared_moves(start: &[Outline], moved: &mut [Outline]) {
                 [p[0] + (sum[0] / count as f64) as f32, p[1] + (sum[1] / count as f64) as f32]
             })
             .collect();
-        let fill = outline.fill;
-        let alpha = outline.alpha;
         *outline = outline.with_points(&agreed);
-        outline.fill = fill;
-        outline.alpha = alpha;
     }
 }
 
