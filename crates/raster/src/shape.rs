@@ -364,6 +364,33 @@ impl Outline {
             .collect()
     }
 
+    /// The same outline with each contour of straight pieces only simplified to the fewest
+    /// corners within `tolerance` pixels of it (Douglas–Peucker) on a `width × height` canvas:
+    /// what a traced staircase moved onto a slanted edge needs of its corners. Contours with a
+    /// cubic, and any that would keep fewer than three corners, stay as they are.
+    pub fn simplified(&self, tolerance: f32, (width, height): (u32, u32)) -> Self {
+        let (w, h) = (width as f32, height as f32);
+        let contours: Vec<Contour> = (self.contours.iter())
+            .map(|contour| {
+                let straight = contour.segments.iter().all(|s| matches!(s, Segment::Line(_)));
+                if !straight || contour.segments.len() < 4 {
+                    return contour.clone();
+                }
+                let ring: Vec<[f32; 2]> =
+                    (contour.points().take(contour.segments.len())).map(|p| [p[0] * w, p[1] * h]).collect();
+                let kept: Vec<[f32; 2]> = (corners(&ring, tolerance).into_iter())
+                    .map(|k| [ring[k][0] / w, ring[k][1] / h])
+                    .collect();
+                if kept.len() < 3 {
+                    return contour.clone();
+                }
+                let segments = kept[1..].iter().chain(&kept[..1]).map(|&p| Segment::Line(p)).collect();
+                Contour { start: kept[0], segments }
+            })
+            .collect();
+        Self::new(contours, self.fill, self.alpha).unwrap_or_else(|| self.clone())
+    }
+
     /// Its contours.
     pub fn contours(&self) -> &[Contour] {
         &self.contours
@@ -456,6 +483,45 @@ impl Filled for Outline {
             }
             out.push('z');
         }
+    }
+}
+
+/// The indices of the corners of the closed polygon `ring` that Douglas–Peucker keeps within
+/// `tolerance`, in order: the first corner and the one farthest from it split the ring in two
+/// open runs, each simplified alone.
+fn corners(ring: &[[f32; 2]], tolerance: f32) -> Vec<usize> {
+    let distance2 = |a: [f32; 2], b: [f32; 2]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2);
+    let far =
+        (1..ring.len()).max_by(|&a, &b| distance2(ring[0], ring[a]).total_cmp(&distance2(ring[0], ring[b])));
+    let Some(far) = far else { return (0..ring.len()).collect() };
+    let mut keep = vec![false; ring.len() + 1];
+    (keep[0], keep[far], keep[ring.len()]) = (true, true, true);
+    let closed: Vec<[f32; 2]> = ring.iter().chain(&ring[..1]).copied().collect();
+    mark_corners(&closed, 0, far, tolerance, &mut keep);
+    mark_corners(&closed, far, ring.len(), tolerance, &mut keep);
+    (0..ring.len()).filter(|&k| keep[k]).collect()
+}
+
+/// Douglas–Peucker between `points[from]` and `points[to]` (both kept): marks in `keep` the
+/// corners farther than `tolerance` from the chord, and recursively those between them.
+fn mark_corners(points: &[[f32; 2]], from: usize, to: usize, tolerance: f32, keep: &mut [bool]) {
+    if to <= from + 1 {
+        return;
+    }
+    let (a, b) = (points[from], points[to]);
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let length = dx.hypot(dy);
+    let distance = |p: [f32; 2]| match length < 1e-6 {
+        true => (p[0] - a[0]).hypot(p[1] - a[1]),
+        false => ((p[0] - a[0]) * dy - (p[1] - a[1]) * dx).abs() / length,
+    };
+    let (worst, d) = (from + 1..to)
+        .map(|k| (k, distance(points[k])))
+        .fold((from, -1.0), |m, x| if x.1 > m.1 { x } else { m });
+    if d > tolerance {
+        keep[worst] = true;
+        mark_corners(points, from, worst, tolerance, keep);
+        mark_corners(points, worst, to, tolerance, keep);
     }
 }
 
@@ -557,6 +623,31 @@ mod tests {
         let mut out = String::new();
         shape.svg_data(scale, Decimals::new(decimals), &mut out);
         out
+    }
+
+    /// A triangle whose long side is traced as a staircase of unit steps: within 0.75 px (the
+    /// steps' corners lie 0.71 px from the diagonal) it is the triangle again; within 0.3 px
+    /// every step stays; an outline of cubics is left as it is.
+    #[test]
+    fn simplifying_a_staircase_keeps_the_corners_it_needs() {
+        let mut corners = vec![[0.0, 0.0], [8.0, 0.0], [8.0, 8.0]];
+        for k in (0..8).rev() {
+            corners.extend([[k as f32, k as f32 + 1.0], [k as f32, k as f32]]);
+        }
+        corners.pop();
+        let unit: Vec<[f32; 2]> = corners.iter().map(|p| [p[0] / 16.0, p[1] / 16.0]).collect();
+        let stairs = Outline::polygon(&unit, [0.2, 0.4, 0.6], 0.5).unwrap();
+        let triangle = stairs.simplified(0.75, (16, 16));
+        assert_eq!(triangle.points(), vec![[0.0, 0.0], [0.5, 0.0], [0.5, 0.5]]);
+        assert_eq!((triangle.fill, triangle.alpha), (stairs.fill, stairs.alpha));
+        assert_eq!(stairs.simplified(0.3, (16, 16)), stairs);
+        let path = Path {
+            points: std::array::from_fn(|i| [0.1 + 0.05 * i as f32, 0.2]),
+            color: [0.0; 3],
+            alpha: 1.0,
+        };
+        let curved = Outline::from_path(&path, [0.0; 3]).unwrap();
+        assert_eq!(curved.simplified(5.0, (16, 16)), curved);
     }
 
     #[test]
