@@ -29,6 +29,7 @@ use rayon::prelude::*;
 
 use crate::coarse::CoarseModel;
 use crate::config::{InvalidSetting, ModelConfig};
+use crate::mover::Mover;
 use crate::operating::OperatingPoint;
 use crate::refine::RefineModel;
 
@@ -257,46 +258,17 @@ impl Checkpoint {
 
     /// Writes the checkpoint to `path` atomically.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
-        let write = |source: burn_pack::Error| CheckpointError::Write { path: path.to_path_buf(), source };
-        let mut tensors: Vec<Entry> = entries(&self.model)
-            .map_err(write)?
-            .into_iter()
-            .map(|e| Entry { name: format!("{MODEL_PREFIX}{}", e.name), ..e })
-            .collect();
-        if let Some(optimizer) = &self.optimizer {
-            let data = TensorData::new(optimizer.to_vec(), [optimizer.len()]);
-            tensors.push(Entry { name: OPTIMIZER_BLOB.into(), id: None, data });
-        }
-        let model_entries = tensors.iter().filter(|e| e.name != OPTIMIZER_BLOB);
-        let sum =
-            checksum(model_entries.map(|e| (e.name.strip_prefix(MODEL_PREFIX).unwrap_or(&e.name), &e.data)));
-        let tensors = tensors.into_iter().map(Entry::into_pack).collect();
         let model_json = serde_json::to_string(&self.model_config).expect("configs serialize");
         let inference =
             self.inference.as_ref().map(|point| serde_json::to_string(point).expect("serializes"));
-        let state = state_checksum(State {
+        let header = Header {
+            format: FORMAT,
             stage: self.stage.name(),
-            model: &model_json,
+            model: Some(&model_json),
             training: self.training.as_deref(),
             inference: inference.as_deref(),
-            optimizer: self.optimizer.as_deref(),
-        });
-        let mut writer = Writer::new(tensors)
-            .with_metadata(key::FORMAT, FORMAT)
-            .with_metadata(key::STAGE, self.stage.name())
-            .with_metadata(key::MODEL, &model_json)
-            .with_metadata(key::CHECKSUM, &sum)
-            .with_metadata(key::STATE, &state)
-            .auto_extension(false);
-        if let Some(training) = &self.training {
-            writer = writer.with_metadata(key::TRAINING, training);
-        }
-        if let Some(point) = &inference {
-            writer = writer.with_metadata(key::INFERENCE, point);
-        }
-        let bytes = writer.into_bytes().map_err(write)?;
-        common::write::write_atomic(path, &bytes)
-            .map_err(|source| CheckpointError::Store { path: path.to_path_buf(), source })
+        };
+        write(path, &header, &self.model, self.optimizer.as_ref())
     }
 
     /// Reads a checkpoint from `path`.
@@ -326,12 +298,7 @@ impl Checkpoint {
     /// The bytes must start on a [`burn_pack::TENSOR_ALIGNMENT`] boundary to be read in place
     /// (tensors are read as slices of f16 or f32); others are copied first.
     pub fn open_bytes(bytes: &'static [u8], name: &Path) -> Result<Opened, CheckpointError> {
-        let bytes = if (bytes.as_ptr() as usize).is_multiple_of(burn_pack::TENSOR_ALIGNMENT as usize) {
-            Bytes::from_shared(bytes::Bytes::from_static(bytes), AllocationProperty::Other)
-        } else {
-            Bytes::from_bytes_vec(bytes.to_vec())
-        };
-        Reader::from_bytes(bytes)
+        Reader::from_bytes(in_place(bytes))
             .map_err(FormatProblem::from)
             .and_then(|reader| Opened::new(reader, name))
             .map_err(|problem| CheckpointError::Format { path: name.to_path_buf(), problem })
@@ -363,6 +330,73 @@ impl Checkpoint {
             .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
         apply(model, weights.iter().map(Entry::to_f32).collect(), path)
     }
+}
+
+/// `bytes` (a file built into the program) read where they lie when they start on a
+/// [`burn_pack::TENSOR_ALIGNMENT`] boundary (tensors are read as slices of f16 or f32), else a copy.
+fn in_place(bytes: &'static [u8]) -> Bytes {
+    if (bytes.as_ptr() as usize).is_multiple_of(burn_pack::TENSOR_ALIGNMENT as usize) {
+        Bytes::from_shared(bytes::Bytes::from_static(bytes), AllocationProperty::Other)
+    } else {
+        Bytes::from_bytes_vec(bytes.to_vec())
+    }
+}
+
+/// What a checkpoint file says about itself besides its tensors.
+struct Header<'a> {
+    format: &'a str,
+    stage: &'a str,
+    /// The model configuration as JSON (none in a mover's file, whose size is fixed).
+    model: Option<&'a str>,
+    training: Option<&'a str>,
+    inference: Option<&'a str>,
+}
+
+/// Writes `model` (burnpack bytes of a record) and `optimizer` to `path` atomically, under
+/// `header` and the checksums of both.
+fn write(
+    path: &Path,
+    header: &Header,
+    model: &Bytes,
+    optimizer: Option<&Bytes>,
+) -> Result<(), CheckpointError> {
+    let fail = |source: burn_pack::Error| CheckpointError::Write { path: path.to_path_buf(), source };
+    let mut tensors: Vec<Entry> = entries(model)
+        .map_err(fail)?
+        .into_iter()
+        .map(|e| Entry { name: format!("{MODEL_PREFIX}{}", e.name), ..e })
+        .collect();
+    if let Some(optimizer) = optimizer {
+        let data = TensorData::new(optimizer.to_vec(), [optimizer.len()]);
+        tensors.push(Entry { name: OPTIMIZER_BLOB.into(), id: None, data });
+    }
+    let model_entries = tensors.iter().filter(|e| e.name != OPTIMIZER_BLOB);
+    let sum =
+        checksum(model_entries.map(|e| (e.name.strip_prefix(MODEL_PREFIX).unwrap_or(&e.name), &e.data)));
+    let tensors = tensors.into_iter().map(Entry::into_pack).collect();
+    let state = state_checksum(State {
+        stage: header.stage,
+        model: header.model.unwrap_or(""),
+        training: header.training,
+        inference: header.inference,
+        optimizer: optimizer.map(|bytes| &bytes[..]),
+    });
+    let mut writer = Writer::new(tensors)
+        .with_metadata(key::FORMAT, header.format)
+        .with_metadata(key::STAGE, header.stage)
+        .with_metadata(key::CHECKSUM, &sum)
+        .with_metadata(key::STATE, &state)
+        .auto_extension(false);
+    let optional =
+        [(key::MODEL, header.model), (key::TRAINING, header.training), (key::INFERENCE, header.inference)];
+    for (key, value) in optional {
+        if let Some(value) = value {
+            writer = writer.with_metadata(key, value);
+        }
+    }
+    let bytes = writer.into_bytes().map_err(fail)?;
+    common::write::write_atomic(path, &bytes)
+        .map_err(|source| CheckpointError::Store { path: path.to_path_buf(), source })
 }
 
 /// `model` with `weights` (tensors named by module path, floats already in f32:
@@ -583,6 +617,123 @@ pub fn load_refine(path: &Path, device: &Device) -> Result<(RefineModel, ModelCo
     opened.expect_stage(Stage::Refine)?;
     let config = opened.model_config.clone();
     Ok((opened.build(RefineModel::new(&config, device))?, config))
+}
+
+/// The format of a mover's file ([`MoverCheckpoint`]).
+const MOVER_FORMAT: &str = "supersvg-mover/1";
+/// The stage a mover's file names.
+pub const MOVER_STAGE: &str = "move";
+
+/// A mover's file ([`Mover`]): its weights and, for resuming training, the optimizer state and
+/// the trainer's own state. The container, keys and checks of [`Checkpoint`], without a
+/// [`ModelConfig`]: the mover's size is its module's.
+#[derive(Clone)]
+pub struct MoverCheckpoint {
+    /// The weights, as burnpack bytes of a [`burn::store::ModuleRecord`].
+    pub model: Bytes,
+    /// The optimizer state, as burnpack bytes, when the file is for resuming training.
+    pub optimizer: Option<Bytes>,
+    /// The trainer's own state as JSON, opaque here.
+    pub training: Option<String>,
+}
+
+impl MoverCheckpoint {
+    /// A file of `mover`'s current weights, in f32 (the mover is small).
+    pub fn of_model(mover: &Mover) -> Self {
+        let model = mover.clone().into_record().into_bytes().expect("a record serializes to memory");
+        Self { model, optimizer: None, training: None }
+    }
+
+    /// The same weights without the optimizer state, stored in `dtype`: what inference needs.
+    /// The trainer's state stays, so a shipped mover still says how it was trained.
+    pub fn for_inference(&self, dtype: DType, path: &Path) -> Result<Self, CheckpointError> {
+        let model = convert(&self.model, dtype)
+            .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
+        Ok(Self { model, optimizer: None, training: self.training.clone() })
+    }
+
+    /// Writes it to `path` atomically.
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let header = Header {
+            format: MOVER_FORMAT,
+            stage: MOVER_STAGE,
+            model: None,
+            training: self.training.as_deref(),
+            inference: None,
+        };
+        write(path, &header, &self.model, self.optimizer.as_ref())
+    }
+
+    /// Reads the mover's file at `path`, checked against its checksums.
+    pub fn load(path: &Path) -> Result<Self, CheckpointError> {
+        if path.is_dir() {
+            return Err(CheckpointError::Folder { path: path.to_path_buf() });
+        }
+        if !path.exists() {
+            return Err(CheckpointError::Missing { path: path.to_path_buf() });
+        }
+        let reader = Reader::from_file(path)
+            .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
+        Self::read(reader, path)
+    }
+
+    /// [`MoverCheckpoint::load`] of a file built into the program; `name` stands for it in errors.
+    pub fn from_bytes(bytes: &'static [u8], name: &Path) -> Result<Self, CheckpointError> {
+        let reader = Reader::from_bytes(in_place(bytes))
+            .map_err(|source| CheckpointError::Format { path: name.to_path_buf(), problem: source.into() })?;
+        Self::read(reader, name)
+    }
+
+    fn read(reader: Reader, name: &Path) -> Result<Self, CheckpointError> {
+        let format = |problem: FormatProblem| CheckpointError::Format { path: name.to_path_buf(), problem };
+        let metadata = reader.metadata().clone();
+        let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
+        let found = get(key::FORMAT).map_err(format)?;
+        if found != MOVER_FORMAT {
+            // E_c's or E_r's checkpoint given for the mover's.
+            let stage = metadata.get(key::STAGE).and_then(|stage| Stage::from_name(stage));
+            return Err(match stage {
+                Some(stage) if found.starts_with("supersvg-checkpoint/") => CheckpointError::WrongStage {
+                    path: name.to_path_buf(),
+                    expected: MOVER_STAGE,
+                    found: stage.name(),
+                },
+                _ => format(FormatProblem::UnsupportedFormat(found)),
+            });
+        }
+        let stored = get(key::CHECKSUM).map_err(format)?;
+        let stored_state = get(key::STATE).map_err(format)?;
+        let training = metadata.get(key::TRAINING).cloned();
+        let (model, optimizer) =
+            split(reader.into_tensors().map_err(|e| format(e.into()))?).map_err(format)?;
+        verify(&model, Some(&stored)).map_err(format)?;
+        let computed = state_checksum(State {
+            stage: MOVER_STAGE,
+            model: "",
+            training: training.as_deref(),
+            inference: None,
+            optimizer: optimizer.as_deref(),
+        });
+        if computed != stored_state {
+            return Err(format(FormatProblem::StateChecksum { stored: stored_state, computed }));
+        }
+        let model = pack(model).map_err(|source| format(source.into()))?;
+        Ok(Self { model, optimizer, training })
+    }
+
+    /// The checksum of the weights, which the file stores and reading verifies: the mover's
+    /// identity.
+    pub fn weights_checksum(&self) -> String {
+        let entries = entries(&self.model).expect("the weights were read from a burnpack");
+        checksum(entries.iter().map(|e| (e.name.as_str(), &e.data)))
+    }
+
+    /// The mover with these weights on `device`; `name` stands for the file in errors.
+    pub fn build(&self, device: &Device, name: &Path) -> Result<Mover, CheckpointError> {
+        let weights = entries(&self.model)
+            .map_err(|source| CheckpointError::Format { path: name.to_path_buf(), problem: source.into() })?;
+        apply(Mover::new(device), weights.iter().map(Entry::to_f32).collect(), name)
+    }
 }
 
 /// One tensor of a burnpack container.

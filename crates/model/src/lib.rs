@@ -1,10 +1,12 @@
-//! The two networks of SuperSVG as burn modules, sized by [`ModelConfig`]:
+//! The networks of SuperSVG as burn modules, E_c and E_r sized by [`ModelConfig`]:
 //!
 //! - [`CoarseModel`] (E_c): a superpixel crop to n paths with visibility;
 //! - [`RefineModel`] (E_r): the crop and the current canvas to m more paths;
+//! - [`Mover`] (E_m): every drawn outline's points moved to where the image has its edges;
 //!
-//! their [`Checkpoint`] files, and the input contract both are fed through ([`InputSpec`],
-//! [`CropBatch`]). Both return a [`raster::PathBatch`] in the crop's unit square.
+//! their [`Checkpoint`] and [`MoverCheckpoint`] files, and the input contract E_c and E_r are fed
+//! through ([`InputSpec`], [`CropBatch`]; both return a [`raster::PathBatch`] in the crop's unit
+//! square) and the mover's ([`frames`], [`profile`]).
 
 mod block;
 mod checkpoint;
@@ -12,6 +14,7 @@ mod coarse;
 mod config;
 mod decoder;
 mod input;
+mod mover;
 mod operating;
 mod placement;
 mod prior;
@@ -19,12 +22,14 @@ mod refine;
 mod vit;
 
 pub use checkpoint::{
-    Checkpoint, CheckpointError, FormatProblem, MismatchProblem, Opened, Stage, load_coarse, load_refine,
+    Checkpoint, CheckpointError, FormatProblem, MOVER_STAGE, MismatchProblem, MoverCheckpoint, Opened, Stage,
+    load_coarse, load_refine,
 };
 pub use coarse::CoarseModel;
 pub use config::{InputSpec, InvalidSetting, ModelConfig, Preset, RefineAnchor};
 pub use decoder::PathDecoder;
 pub use input::{CropBatch, MIN_REGION_PIXELS, canvas_cells, crop_to_image};
+pub use mover::{Frame, MAX_MOVE, MOVER_HIDDEN, Mover, PROFILE_LEN, PROFILE_OFFSETS, frames, profile};
 pub use operating::OperatingPoint;
 pub use placement::PathOptimizer;
 pub use prior::{ANCHOR_SIDE, error_squares};

@@ -1,11 +1,11 @@
-//! E_c and E_r: shapes and ranges, inheritance, checkpoints, backends, trainability.
+//! E_c, E_r and the mover: shapes and ranges, inheritance, checkpoints, backends, trainability.
 
 use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{DType, Device, Distribution, Tensor};
 use model::{
-    Checkpoint, CheckpointError, CoarseModel, FormatProblem, ModelConfig, Preset, RefineModel, Stage,
-    load_coarse, load_refine,
+    Checkpoint, CheckpointError, CoarseModel, FormatProblem, ModelConfig, Mover, MoverCheckpoint,
+    PROFILE_LEN, Preset, RefineModel, Stage, load_coarse, load_refine,
 };
 use raster::{Backend, PathBatch, SoftRasterOptions, render_soft};
 
@@ -257,6 +257,69 @@ fn damaged_or_diverged_weights_are_refused_by_name() {
         let refused = matches!(err, CheckpointError::Format { problem: FormatProblem::NonFinite(_), .. });
         assert!(refused, "{dtype:?}: {err}");
         assert!(err.to_string().contains("diverged.ckpt"), "{err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A mover's file gives back the same moves, from a file or built into a program; exported, it
+/// drops the optimizer and keeps the trainer's record; damaged, diverged, E_c's checkpoint in
+/// its place, junk or missing, it is refused by name.
+#[test]
+fn a_mover_round_trips_and_refuses_what_is_not_its_file() {
+    let dir = std::env::temp_dir().join(format!("supersvg-mover-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let device = Device::flex();
+    let mover = Mover::new(&device);
+    let profiles: Vec<f32> = (0..5 * PROFILE_LEN).map(|i| ((i * 7919) % 200) as f32 / 400.0 - 0.25).collect();
+    let expected = mover.moves(profiles.clone(), &device);
+    let path = dir.join("mover.ckpt");
+    let training = MoverCheckpoint {
+        optimizer: Some(burn::tensor::Bytes::from_elems(vec![3u8; 256])),
+        training: Some("{\"step\":9}".into()),
+        ..MoverCheckpoint::of_model(&mover)
+    };
+    training.save(&path).unwrap();
+    let read = MoverCheckpoint::load(&path).unwrap();
+    assert_eq!(read.optimizer.as_ref().unwrap().to_vec(), vec![3u8; 256]);
+    assert_eq!(read.weights_checksum(), training.weights_checksum());
+    assert_eq!(read.build(&device, &path).unwrap().moves(profiles.clone(), &device), expected);
+    let shipped = dir.join("shipped.ckpt");
+    read.for_inference(DType::F32, &path).unwrap().save(&shipped).unwrap();
+    let file = std::fs::read(&shipped).unwrap();
+    let built_in =
+        MoverCheckpoint::from_bytes(past_boundary(&file, 0), std::path::Path::new("built-in")).unwrap();
+    assert!(built_in.optimizer.is_none());
+    assert_eq!(built_in.training.as_deref(), Some("{\"step\":9}"));
+    assert_eq!(built_in.build(&device, &shipped).unwrap().moves(profiles, &device), expected);
+
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = bytes.len() - 300;
+    bytes[at..at + 4].iter_mut().for_each(|b| *b ^= 0x5a);
+    let damaged = dir.join("damaged.ckpt");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let err = MoverCheckpoint::load(&damaged).err().expect("a damaged file is refused");
+    assert!(
+        matches!(err, CheckpointError::Format { .. }) && err.to_string().contains("damaged.ckpt"),
+        "{err}"
+    );
+    let diverged = dir.join("diverged.ckpt");
+    MoverCheckpoint::of_model(&mover.clone().map(&mut NanEverything)).save(&diverged).unwrap();
+    let err = MoverCheckpoint::load(&diverged).err().expect("NaN weights are refused");
+    assert!(matches!(err, CheckpointError::Format { problem: FormatProblem::NonFinite(_), .. }), "{err}");
+
+    let config = tiny();
+    let coarse = dir.join("coarse.ckpt");
+    Checkpoint::of_model(Stage::Coarse, &config, &CoarseModel::new(&config, &device), DType::F32)
+        .save(&coarse)
+        .unwrap();
+    let err = MoverCheckpoint::load(&coarse).err().unwrap();
+    assert!(matches!(err, CheckpointError::WrongStage { expected: "move", found: "coarse", .. }), "{err}");
+    let err = load_coarse(&path, &device).err().unwrap();
+    assert!(err.to_string().contains("mover.ckpt") && err.to_string().contains("supersvg-mover/1"), "{err}");
+    std::fs::write(dir.join("junk.ckpt"), b"junk").unwrap();
+    for name in ["junk.ckpt", "missing.ckpt"] {
+        let err = MoverCheckpoint::load(&dir.join(name)).err().unwrap();
+        assert!(err.to_string().contains(name), "{err}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
