@@ -227,6 +227,38 @@ impl std::str::FromStr for Fills {
 #[error("{0:?} is not a fill: flat, linear or auto")]
 pub struct FillsParseError(pub String);
 
+/// Where the mover (E_m) moves what SuperSVG-B drew ([`crate::stages::move_outlines`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Moves {
+    /// Where B fills regions with ramps: photos, unless the job asks for flat fills or for
+    /// SuperSVG-F (which moves every outline itself). Flat art is left as B drew it.
+    #[default]
+    Auto,
+    /// On every drawing.
+    On,
+    /// Never.
+    Off,
+}
+
+impl std::str::FromStr for Moves {
+    type Err = MovesParseError;
+
+    /// `auto`, `on` or `off`.
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text {
+            "auto" => Ok(Moves::Auto),
+            "on" => Ok(Moves::On),
+            "off" => Ok(Moves::Off),
+            _ => Err(MovesParseError(text.to_string())),
+        }
+    }
+}
+
+/// Text that is no [`Moves`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0:?} is not a choice of moves: auto, on or off")]
+pub struct MovesParseError(pub String);
+
 /// Everything that decides how an image becomes an SVG.
 #[derive(Clone, Debug)]
 pub struct Job {
@@ -268,6 +300,8 @@ pub struct Job {
     /// pass over the whole image in five moments, so only a caller that reads it asks
     /// (`infer --metrics`).
     pub ssim: bool,
+    /// Where the mover moves B's outlines; it runs only with [`crate::Models::mover`].
+    pub moves: Moves,
 }
 
 impl Default for Job {
@@ -284,6 +318,7 @@ impl Default for Job {
             batch: 32,
             refiner: Refiner::Network,
             ssim: false,
+            moves: Moves::Auto,
         }
     }
 }

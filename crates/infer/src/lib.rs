@@ -27,6 +27,7 @@ mod fills;
 mod finetune;
 mod job;
 mod models;
+mod mover;
 pub mod paper;
 mod pipeline;
 mod refine;
@@ -36,23 +37,26 @@ mod segmentation;
 pub use finetune::{FinetuneOptions, Limit, Progress, finetune, finetune_with_progress};
 pub use job::{
     AutoRule, BudgetParseError, Fills, FillsParseError, InvalidJob, Job, MAX_FINETUNE_SECS,
-    MAX_FINETUNE_STEPS, MAX_OPTIMIZER_STEPS, MAX_PATHS, MAX_TOLERANCE, MIN_PATHS, OPTIMIZER_STEPS,
-    PathBudget, Refiner, RefinerParseError, Split, SplitParseError, VectorizeError, Warning,
+    MAX_FINETUNE_STEPS, MAX_OPTIMIZER_STEPS, MAX_PATHS, MAX_TOLERANCE, MIN_PATHS, Moves, MovesParseError,
+    OPTIMIZER_STEPS, PathBudget, Refiner, RefinerParseError, Split, SplitParseError, VectorizeError, Warning,
 };
 pub use models::{
-    BUILT_IN_COARSE, BUILT_IN_REFINE, BuiltIn, Context, Identity, MODELS_ENV, ModelSource, Models,
-    ModelsError, Network, bundled,
+    BUILT_IN_COARSE, BUILT_IN_MOVER, BUILT_IN_REFINE, BuiltIn, Context, Identity, MODELS_ENV, ModelSource,
+    Models, ModelsError, MoverNetwork, Network, bundled,
 };
+pub use mover::MoveTally;
 pub use pipeline::{Outcome, Report, Seconds, run, run_with_progress};
 pub use refine::RefineTally;
 pub use scene::{Origin, Placed, Scene, StageCounts};
 
 /// The stages of SuperSVG-B one at a time, for those who train the networks the way inference
-/// uses them and for tests: segmenting, the fallback drawing, the coarse and refinement stages.
+/// uses them and for tests: segmenting, the fallback drawing, the coarse and refinement stages,
+/// the mover's.
 pub mod stages {
     pub use crate::coarse::draw_coarse;
     pub use crate::fallback::{FallbackDrawing, Style, fitted_path};
     pub use crate::fills::{RAMP_BYTES, REGION_BYTES, Ramps};
+    pub use crate::mover::{MOVE_GRID, SIMPLIFY_PIXELS, move_outlines};
     pub use crate::refine::{Proposer, draw_refinement};
     pub use crate::scene::Scope;
     pub use crate::segmentation::{PIXELS_PER_REGION, Segmented, hierarchy, max_regions};

@@ -1,4 +1,4 @@
-//! The two networks inference runs, and where the bundled ones are found.
+//! The networks inference runs, and where the bundled ones are found.
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
@@ -6,8 +6,8 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use burn::module::Module;
 use burn::tensor::Device;
 use model::{
-    Checkpoint, CheckpointError, CoarseModel, MismatchProblem, ModelConfig, Opened, OperatingPoint,
-    RefineModel, Stage,
+    Checkpoint, CheckpointError, CoarseModel, MismatchProblem, ModelConfig, Mover, MoverCheckpoint, Opened,
+    OperatingPoint, RefineModel, Stage,
 };
 
 /// Where a checkpoint is read from: a file, or the copy of a bundled model built into this
@@ -16,13 +16,14 @@ use model::{
 pub enum ModelSource {
     /// A checkpoint file.
     File(PathBuf),
-    /// A bundled checkpoint built in ([`BUILT_IN_COARSE`], [`BUILT_IN_REFINE`]).
+    /// A bundled checkpoint built in ([`BUILT_IN_COARSE`], [`BUILT_IN_REFINE`], [`BUILT_IN_MOVER`]).
     BuiltIn(&'static BuiltIn),
     /// Networks built in memory by the caller (not loadable), named by it.
     Memory(&'static str),
 }
 
-/// A bundled checkpoint compiled into the program (f16 weights, about 4.5 MB each).
+/// A bundled checkpoint compiled into the program (E_c's and E_r's f16 weights are about 4.5 MB
+/// each; the mover's f32 weights 18 KB).
 #[derive(Debug, PartialEq)]
 pub struct BuiltIn {
     /// Its file name in `models/`.
@@ -51,7 +52,20 @@ pub static BUILT_IN_COARSE: BuiltIn =
 pub static BUILT_IN_REFINE: BuiltIn =
     BuiltIn { name: "refine.ckpt", bytes: include_aligned!("../../../models/refine.ckpt") };
 
+/// The bundled mover E_m, `models/mover.ckpt` as it was when this program was built.
+pub static BUILT_IN_MOVER: BuiltIn =
+    BuiltIn { name: "mover.ckpt", bytes: include_aligned!("../../../models/mover.ckpt") };
+
 impl ModelSource {
+    /// The mover's file it holds, read and checked.
+    pub fn open_mover(&self) -> Result<MoverCheckpoint, CheckpointError> {
+        match self {
+            Self::File(path) => MoverCheckpoint::load(path),
+            Self::BuiltIn(built_in) => MoverCheckpoint::from_bytes(built_in.bytes, &self.name()),
+            Self::Memory(_) => Err(CheckpointError::Missing { path: self.name() }),
+        }
+    }
+
     /// The checkpoint it holds, opened: its header read and checked, its weights not yet.
     pub fn open(&self) -> Result<Opened, CheckpointError> {
         match self {
@@ -189,14 +203,43 @@ impl<M: Module> Network<M> {
     }
 }
 
-/// The trained networks inference runs, each read the first time a stage uses it (cloning
-/// shares them).
+/// The mover inference runs: which it is, and the network, read when loaded (it is small).
+/// Cloning shares it.
+#[derive(Clone)]
+pub struct MoverNetwork {
+    /// Which mover this is.
+    pub identity: Identity,
+    /// The network.
+    pub mover: Arc<Mover>,
+}
+
+impl MoverNetwork {
+    /// The mover in `source`, read, verified and built on `device`.
+    pub fn load(source: &ModelSource, device: &Device) -> Result<Self, CheckpointError> {
+        let file = source.open_mover()?;
+        let mover = file.build(device, &source.name())?;
+        let identity =
+            Identity { source: source.clone(), checksum: file.weights_checksum(), training: file.training };
+        Ok(Self { identity, mover: Arc::new(mover) })
+    }
+
+    /// A mover the caller built in memory (one in training, a test's), named `name`.
+    pub fn in_memory(mover: Mover, name: &'static str) -> Self {
+        let identity = Identity { source: ModelSource::Memory(name), checksum: "-".into(), training: None };
+        Self { identity, mover: Arc::new(mover) }
+    }
+}
+
+/// The trained networks inference runs, E_c and E_r each read the first time a stage uses it
+/// (cloning shares them).
 #[derive(Clone)]
 pub struct Models {
     /// E_c.
     pub coarse: Network<CoarseModel>,
     /// E_r; without it the result has only coarse paths.
     pub refine: Option<Network<RefineModel>>,
+    /// E_m; without it B's outlines stay where B drew them.
+    pub mover: Option<MoverNetwork>,
     /// Their configuration (architecture and input contract).
     pub config: ModelConfig,
     /// How a path budget is split between regions, E_c and E_r: the one measured for these
@@ -211,11 +254,17 @@ impl Models {
         Self::from_sources(&ModelSource::File(coarse.to_path_buf()), refine.as_ref(), device)
     }
 
-    /// The bundled models ([`bundled`]): E_c, and E_r when `refine` is true.
+    /// The bundled models ([`bundled`]): E_c, E_r when `refine` is true, and E_m.
     pub fn bundled(refine: bool, device: &Device) -> Result<Self, ModelsError> {
         let coarse = bundled(&BUILT_IN_COARSE)?;
         let refine = refine.then(|| bundled(&BUILT_IN_REFINE)).transpose()?;
-        Ok(Self::from_sources(&coarse, refine.as_ref(), device)?)
+        let models = Self::from_sources(&coarse, refine.as_ref(), device)?;
+        Ok(models.with_mover(&bundled(&BUILT_IN_MOVER)?, device)?)
+    }
+
+    /// The same networks with the mover in `source`.
+    pub fn with_mover(self, source: &ModelSource, device: &Device) -> Result<Self, CheckpointError> {
+        Ok(Self { mover: Some(MoverNetwork::load(source, device)?), ..self })
     }
 
     /// [`Models::load`] from files or built-in copies. What each checkpoint says about itself
@@ -245,7 +294,7 @@ impl Models {
                 Some(Network::deferred(source, &opened, Stage::Refine, RefineModel::new, device))
             }
         };
-        Ok(Self { coarse: coarse_network, refine, config, operating_point })
+        Ok(Self { coarse: coarse_network, refine, mover: None, config, operating_point })
     }
 }
 
@@ -261,8 +310,8 @@ pub struct Context<'a> {
     pub device: &'a Device,
 }
 
-/// Environment variable naming a folder with `coarse.ckpt` and `refine.ckpt`, used instead of
-/// the built-in models.
+/// Environment variable naming a folder with `coarse.ckpt`, `refine.ckpt` and `mover.ckpt`, used
+/// instead of the built-in models.
 pub const MODELS_ENV: &str = "SUPERSVG_MODELS";
 
 /// Why the bundled models could not be found or loaded.

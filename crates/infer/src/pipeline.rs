@@ -2,7 +2,8 @@
 //! front end use, so that every figure they print is what a user of `infer` gets.
 //!
 //! SuperSVG-B is stages over one [`Scene`]: segment (the image's merge tree, cut at the
-//! budget's regions) → coarse (background, fallbacks, E_c) → refine (E_r); SuperSVG-F
+//! budget's regions) → coarse (background, fallbacks, E_c) → refine (E_r); the mover (E_m)
+//! then moves what B drew, where the job says ([`Moves`]); SuperSVG-F
 //! fine-tunes the scene it is handed ([`Outcome::finetuned`]); export writes the SVG from the
 //! scene and measures its canvas, which is never rendered again.
 
@@ -18,9 +19,11 @@ use serde::Serialize;
 
 use crate::budget::{BudgetPlan, Market};
 use crate::coarse::draw_coarse;
+use crate::fills::Ramps;
 use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
-use crate::job::{InvalidJob, Job, PathBudget, Refiner, Split, VectorizeError, Warning};
+use crate::job::{InvalidJob, Job, Moves, PathBudget, Refiner, Split, VectorizeError, Warning};
 use crate::models::{Context, Models};
+use crate::mover::{MoveTally, move_outlines};
 use crate::paper::draw_paper;
 use crate::refine::{Proposer, RefineTally, draw_refinement};
 use crate::scene::{Scene, StageCounts};
@@ -37,8 +40,11 @@ pub struct Seconds {
     pub coarse: f64,
     /// E_r.
     pub refine: f64,
-    /// Of `coarse` and `refine`, E_c's and E_r's forward passes (cropping their regions and
-    /// reading out their paths included): what the method's networks cost beside the rest.
+    /// The mover, E_m: its pass, and scoring and writing the moved outlines.
+    pub moves: f64,
+    /// Of `coarse`, `refine` and `moves`, the networks' forward passes (cropping their regions
+    /// or reading their profiles, and reading out their paths or moves, included): what the
+    /// method's networks cost beside the rest.
     pub networks: f64,
     /// SuperSVG-F, when asked for.
     pub finetune: Option<f64>,
@@ -73,6 +79,8 @@ pub struct Report {
     pub operating_point: Split,
     /// What E_r proposed, kept and gained (SuperSVG-B's; fine-tuning leaves it as it was).
     pub refinement: RefineTally,
+    /// What the mover moved and gained, when it ran.
+    pub moves: Option<MoveTally>,
     /// Mean squared error of the drawing at the working size (RGB in [0, 1]).
     pub mse: f64,
     /// Its PSNR (dB).
@@ -147,14 +155,28 @@ pub fn run_with_progress(
     };
     let refine = clock.elapsed().as_secs_f64();
 
-    let networks = coarse_network + refinement.network_seconds;
+    let clock = Instant::now();
+    let runs = match job.moves {
+        Moves::Auto => plan.style.ramps != Ramps::None,
+        Moves::On => true,
+        Moves::Off => false,
+    };
+    let moved = match &models.mover {
+        Some(network) if runs => Some(move_outlines(&network.mover, &mut scene, image.original, device)),
+        _ => None,
+    };
+    let moves = clock.elapsed().as_secs_f64();
+
+    let networks =
+        coarse_network + refinement.network_seconds + moved.map_or(0.0, |tally| tally.network_seconds);
     let seconds =
-        Seconds { decode: image.seconds, superpixels, coarse, refine, networks, ..Seconds::default() };
+        Seconds { decode: image.seconds, superpixels, coarse, refine, moves, networks, ..Seconds::default() };
     let drawn = Drawn {
         auto_budget: plan.auto,
         budget: plan.paths,
         point: Split::Point(plan.point),
         refinement,
+        moves: moved,
         seconds,
     };
     finish(scene, image, job, drawn, warnings, on_step)
@@ -181,7 +203,8 @@ fn run_paper(
         networks,
         ..Seconds::default()
     };
-    let drawn = Drawn { auto_budget: false, budget: paths, point: Split::Paper, refinement, seconds };
+    let drawn =
+        Drawn { auto_budget: false, budget: paths, point: Split::Paper, refinement, moves: None, seconds };
     finish(scene, image, job, drawn, Vec::new(), on_step)
 }
 
@@ -211,6 +234,7 @@ struct Drawn {
     budget: usize,
     point: Split,
     refinement: RefineTally,
+    moves: Option<MoveTally>,
     seconds: Seconds,
 }
 
@@ -231,12 +255,13 @@ fn export(
     let mse = common::mse(&canvas, &image.image);
     let ssim = job.ssim.then(|| common::ssim(&canvas, &image.image));
     let export = clock.elapsed().as_secs_f64();
-    let Drawn { auto_budget, budget, point, refinement, mut seconds } = drawn;
+    let Drawn { auto_budget, budget, point, refinement, moves, mut seconds } = drawn;
     seconds.export = export;
     seconds.total = seconds.decode
         + seconds.superpixels
         + seconds.coarse
         + seconds.refine
+        + seconds.moves
         + seconds.finetune.unwrap_or(0.0)
         + export;
     let report = Report {
@@ -251,6 +276,7 @@ fn export(
         regions: scene.segmentation().regions.len(),
         operating_point: point,
         refinement,
+        moves,
         mse,
         psnr: common::psnr_of_mse(mse),
         ssim,
@@ -281,6 +307,7 @@ impl Outcome {
             budget: report.budget,
             point: report.operating_point,
             refinement: report.refinement,
+            moves: report.moves,
             seconds,
         };
         let mut outcome = export(scene, image, job, drawn, warnings)?;

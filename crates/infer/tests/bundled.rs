@@ -87,10 +87,42 @@ fn an_installed_program_carries_its_models() {
     };
     let said = draw(&installed, &[], "installed.svg");
     assert!(said.contains("coarse built-in coarse.ckpt (weights "), "{said}");
-    let files = ["--coarse", "coarse.ckpt", "--refine", "refine.ckpt"]
+    let files = ["--coarse", "coarse.ckpt", "--refine", "refine.ckpt", "--mover", "mover.ckpt"]
         .map(|a| if a.ends_with(".ckpt") { format!("{root}/models/{a}") } else { a.to_string() });
     draw(std::path::Path::new(env!("CARGO_BIN_EXE_infer")), &files, "files.svg");
     let read = |name: &str| std::fs::read(elsewhere.join(name)).unwrap();
     assert!(read("installed.svg") == read("files.svg"), "the built-in models draw otherwise than models/");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The bundled mover moves the example photo's outlines onto its edges: `infer` names it, and
+/// it draws the photo better than `--moves off` in no more bytes.
+#[test]
+fn the_bundled_mover_draws_the_example_better_in_no_more_bytes() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let input = format!("{root}/assets/astronaut.jpg");
+    let dir = std::env::temp_dir().join(format!("supersvg-mover-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let draw = |moves: &str| {
+        let metrics = dir.join(format!("{moves}.json"));
+        let result = Command::new(env!("CARGO_BIN_EXE_infer"))
+            .args([&input, "-o", dir.join(format!("{moves}.svg")).to_str().unwrap(), "--paths", "100"])
+            .args(["--size", "128", "--moves", moves, "--metrics", metrics.to_str().unwrap()])
+            .env_remove("SUPERSVG_MODELS")
+            .output()
+            .unwrap();
+        assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(metrics).unwrap()).unwrap();
+        (report, String::from_utf8_lossy(&result.stderr).into_owned())
+    };
+    let ((moved, said), (drawn, _)) = (draw("auto"), draw("off"));
+    assert!(said.contains("mover built-in mover.ckpt (weights "), "{said}");
+    let (gain, kept) =
+        (moved["moves"]["gain_db"].as_f64().unwrap(), moved["moves"]["kept"].as_bool().unwrap());
+    let psnr = |report: &serde_json::Value| report["psnr"].as_f64().unwrap();
+    let bytes = |report: &serde_json::Value| report["svg_bytes"].as_u64().unwrap();
+    assert!(kept && gain >= 0.4, "{}", moved["moves"]);
+    assert!((psnr(&moved) - psnr(&drawn) - gain).abs() < 1e-6 && drawn["moves"].is_null());
+    assert!(bytes(&moved) <= bytes(&drawn), "{} bytes moved, {} as drawn", bytes(&moved), bytes(&drawn));
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1,11 +1,14 @@
-//! `infer::run` with small untrained models: budgets, coverage, determinism, the automatic
-//! budget, and errors a caller can make. (What only the `infer` program does — arguments,
+//! `infer::run` with small untrained models (and the bundled mover): budgets, coverage,
+//! determinism, the automatic budget, where the mover runs, and errors a caller can make. (What only the `infer` program does — arguments,
 //! files, streams — is in cli.rs.)
 
 use burn::tensor::Device;
 use common::Loaded;
 use image::{Rgb, Rgb32FImage};
-use infer::{AutoRule, InvalidJob, Job, Models, Network, PathBudget, Split, VectorizeError, run};
+use infer::{
+    AutoRule, BUILT_IN_MOVER, Fills, InvalidJob, Job, ModelSource, Models, Moves, Network, PathBudget, Split,
+    VectorizeError, run,
+};
 use model::OperatingPoint;
 
 mod support;
@@ -16,6 +19,7 @@ fn models(refine: bool) -> Models {
     Models {
         coarse: Network::in_memory(coarse, "tiny E_c"),
         refine: refine.then(|| Network::in_memory(e_r, "tiny E_r")),
+        mover: None,
         config,
         operating_point: OperatingPoint::default(),
     }
@@ -65,7 +69,12 @@ fn stays_within_the_budget_and_reports_what_it_drew() {
         let drawn = common::psnr(&outcome.scene.canvas_image(), &image.image);
         assert!((report.psnr - drawn).abs() < 1e-9 && report.psnr > 10.0, "{} vs {drawn}", report.psnr);
         let seconds = report.seconds;
-        let parts = seconds.decode + seconds.superpixels + seconds.coarse + seconds.refine + seconds.export;
+        let parts = seconds.decode
+            + seconds.superpixels
+            + seconds.coarse
+            + seconds.refine
+            + seconds.moves
+            + seconds.export;
         assert!((seconds.total - parts).abs() < 1e-9 && seconds.finetune.is_none());
         // The networks' passes are part of the coarse and refinement stages' time, and take
         // time where E_r proposed (where the drawing leaves it no region, it is not asked).
@@ -252,4 +261,55 @@ fn the_optimizer_refines_in_place_of_e_r() {
     assert_eq!(optimized.operating_point, Split::Point(point));
     assert!(optimized.paths_by_stage.refine > 0 && optimized.paths <= 40, "{:?}", optimized.paths_by_stage);
     assert!(optimized.refinement.gain_db > 0.0 && optimized.psnr > e_r.psnr, "{optimized:?} against {e_r:?}");
+}
+
+/// Tiny E_c and E_r beside the bundled mover.
+fn with_mover() -> Models {
+    let device = Device::flex();
+    models(true).with_mover(&ModelSource::BuiltIn(&BUILT_IN_MOVER), &device).unwrap()
+}
+
+/// The mover runs where the job says: by default where B fills with ramps (not with flat
+/// fills, nor on flat art), always with `Moves::On`, never with `Moves::Off` or without a
+/// mover; where it runs, its moves are kept only if the drawing is better for them, and its
+/// time is part of the total.
+#[test]
+fn the_mover_runs_where_the_job_says_and_keeps_only_a_better_drawing() {
+    let (moving, image, device) = (with_mover(), photo(), Device::flex());
+    let report = |job: Job, models: &Models| run(models, &image, &job, &device).unwrap().report;
+    let off = report(Job { moves: Moves::Off, ..job(100) }, &moving);
+    assert_eq!(off.moves, None);
+    assert_eq!(report(job(100), &models(true)).psnr, off.psnr, "no mover, no moves");
+    let flat = report(Job { fills: Some(Fills::Flat), ..job(100) }, &moving);
+    assert_eq!(flat.moves, None, "flat fills are left as drawn by default");
+    for job in [job(100), Job { fills: Some(Fills::Flat), moves: Moves::On, ..job(100) }] {
+        let moved = report(job.clone(), &moving);
+        let tally = moved.moves.expect("the mover ran");
+        let before = report(Job { moves: Moves::Off, ..job }, &moving);
+        assert!(tally.points > 0 && tally.network_seconds > 0.0, "{tally:?}");
+        assert!(
+            moved.seconds.moves >= tally.network_seconds && moved.seconds.networks >= tally.network_seconds
+        );
+        match tally.kept {
+            true => assert!((moved.psnr - before.psnr - tally.gain_db).abs() < 1e-6, "{tally:?}"),
+            false => {
+                assert_eq!((moved.psnr, moved.svg_bytes, tally.gain_db), (before.psnr, before.svg_bytes, 0.0))
+            }
+        }
+    }
+}
+
+/// Two flat halves that B draws exactly: there is nothing to gain, so whatever the mover
+/// predicts, the drawing stays as B drew it, to the byte.
+#[test]
+fn the_mover_leaves_an_exact_drawing_as_it_was() {
+    let (models, device) = (with_mover(), Device::flex());
+    let halves = Loaded::from_image(Rgb32FImage::from_fn(64, 48, |x, _| {
+        if x < 29 { Rgb([0.9, 0.2, 0.1]) } else { Rgb([0.1, 0.3, 0.8]) }
+    }));
+    let draw = |moves| run(&models, &halves, &Job { moves, ..job(8) }, &device).unwrap();
+    let (moved, drawn) = (draw(Moves::On), draw(Moves::Off));
+    let tally = moved.report.moves.expect("the mover ran");
+    assert!(!tally.kept && tally.points > 0, "{tally:?}");
+    assert_eq!(moved.svg, drawn.svg);
 }

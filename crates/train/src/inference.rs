@@ -202,6 +202,7 @@ impl CoarseCheck {
         let models = Models {
             coarse: Network::in_memory(model.clone(), "the model in training"),
             refine: None,
+            mover: None,
             config: self.config.clone(),
             operating_point: self.point,
         };

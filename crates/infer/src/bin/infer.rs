@@ -19,8 +19,8 @@ use common::write::{write_atomic, write_png};
 use image::{Rgb32FImage, RgbImage};
 use infer::cli::{Outputs, Planned, colour, plan, stdout_closed, working_size};
 use infer::{
-    BUILT_IN_COARSE, BUILT_IN_REFINE, Fills, FinetuneOptions, InvalidJob, Job, Limit, ModelSource, Models,
-    PathBudget, Progress, Refiner, Report, Split, bundled, run_with_progress,
+    BUILT_IN_COARSE, BUILT_IN_MOVER, BUILT_IN_REFINE, Fills, FinetuneOptions, InvalidJob, Job, Limit,
+    ModelSource, Models, Moves, PathBudget, Progress, Refiner, Report, Split, bundled, run_with_progress,
 };
 use raster::{Backend, SvgOptions};
 use rayon::prelude::*;
@@ -62,6 +62,14 @@ struct Args {
     #[arg(long, default_value = "network", value_parser = str::parse::<Refiner>,
           conflicts_with_all = ["refine", "no_refine"])]
     refiner: Refiner,
+    /// Where the mover E_m moves what SuperSVG-B drew onto the image's edges: `auto` (where B
+    /// fills regions with ramps: photos, not flat art, and not with --fills flat or SuperSVG-F),
+    /// `on` or `off`.
+    #[arg(long, default_value = "auto", value_parser = str::parse::<Moves>)]
+    moves: Moves,
+    /// The mover's checkpoint (default: the bundled one, or mover.ckpt in $SUPERSVG_MODELS).
+    #[arg(long)]
+    mover: Option<PathBuf>,
     /// Compute backend: flex, ndarray or wgpu.
     #[arg(long, default_value = "flex")]
     backend: Backend,
@@ -136,6 +144,7 @@ impl Args {
             fills: self.fills,
             operating_point: self.operating_point,
             refiner: self.refiner,
+            moves: self.moves,
             ssim: self.metrics.is_some(),
             ..Job::default()
         };
@@ -220,7 +229,14 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
         (Some(path), false) => Some(ModelSource::File(path.clone())),
         (None, false) => Some(bundled(&BUILT_IN_REFINE)?),
     };
-    let models = Models::from_sources(&coarse, refine.as_ref(), &device)?;
+    let mut models = Models::from_sources(&coarse, refine.as_ref(), &device)?;
+    if args.moves != Moves::Off {
+        let mover = match &args.mover {
+            Some(path) => ModelSource::File(path.clone()),
+            None => bundled(&BUILT_IN_MOVER)?,
+        };
+        models = models.with_mover(&mover, &device)?;
+    }
     plan.prepare()?;
     let jobs = plan.jobs;
     if !args.quiet {
@@ -230,7 +246,8 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
             (Some(refine), Refiner::Network) => refine.identity.to_string(),
             (None, Refiner::Network) => "none".to_string(),
         };
-        eprintln!("models: coarse {coarse}, refine {refine}");
+        let mover = models.mover.as_ref().map_or_else(|| "none".to_string(), |m| m.identity.to_string());
+        eprintln!("models: coarse {coarse}, refine {refine}, mover {mover}");
     }
     let keeps_none = match args.operating_point {
         Split::Stored => (models.operating_point.refine_share == 0.0)
