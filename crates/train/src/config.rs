@@ -772,8 +772,10 @@ mod tests {
                 load::<RefineConfig>(&path).unwrap();
             } else if name.ends_with("coarse.toml") {
                 load::<CoarseConfig>(&path).unwrap();
+            } else if name == "mover.toml" {
+                crate::MoverConfig::load(&path).unwrap();
             } else {
-                panic!("{name}: configs/ holds *coarse.toml and *refine.toml files only");
+                panic!("{name}: configs/ holds *coarse.toml, *refine.toml and mover.toml only");
             }
             seen += 1;
         }

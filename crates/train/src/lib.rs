@@ -1,13 +1,15 @@
-//! Training SuperSVG's two stages, shared by the `train-coarse` and `train-refine` programs:
+//! Training SuperSVG's networks, shared by the `train-coarse` and `train-refine` programs:
 //! configuration files ([`config`]), the data stream ([`DataSource`], [`Loader`]), the
 //! objectives ([`CoarseObjective`], [`RefineObjective`]), the resumable training loop
 //! ([`train`]) and the scores of a model on held-out images ([`Validation`], [`CoarseCheck`],
-//! [`RefineCheck`]). The programs are [`cli`]'s flags and one call each.
+//! [`RefineCheck`]); the mover's teacher and regression ([`train_mover`], `train-mover`). The
+//! programs are [`cli`]'s flags and one call each.
 
 pub mod cli;
 pub mod config;
 mod data;
 mod inference;
+mod mover;
 mod objective;
 mod optimizer;
 mod preview;
@@ -22,6 +24,10 @@ pub use data::{
     Batch, DataError, DataSource, DrawnBox, DrawnBoxes, ImageSet, Loader, Samples, synthetic_scene,
 };
 pub use inference::{AtInference, CoarseCheck, CoarseScores, RefineCheck, RefineScores};
+pub use mover::{
+    Begin, MoverConfig, MoverData, MoverError, MoverState, MoverSummary, MoverTraining, Room, Sample,
+    Teacher, mover_checkpoint, teach, train_mover,
+};
 pub use objective::{CoarseObjective, Objective, RefineObjective, StepOutput};
 pub use optimizer::adamw;
 pub use stop::{catch_interrupts, interrupted};

@@ -179,3 +179,53 @@ fn refinement_needs_a_coarse_checkpoint() {
     assert!(err.contains("models/coarse.ckpt") && err.contains("is not the [model] of"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+const MOVER: &str = env!("CARGO_BIN_EXE_train-mover");
+
+/// `train-mover` on one small image: it refuses unknown keys and a folder it would overwrite by
+/// name, and a run of two epochs resumed after its first gives the weights of one run of two
+/// (the teacher's samples read back, the optimizer restored), which `export-model` ships.
+#[test]
+fn the_mover_trains_resumes_exactly_and_exports() {
+    let dir = scratch("mover");
+    let image = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/astronaut.jpg");
+    let config = |epochs: usize, extra: &str| {
+        let path = dir.join(format!("mover-{epochs}.toml"));
+        let text = format!(
+            "[data]\nimages = [{image:?}]\npaths = [24]\nsize = 48\n[teacher]\nsteps = 5\npad = 5\n\
+             [train]\nepochs = {epochs}\nbatch = 64\nlearning_rate = 1e-3\nseed = 1\nheld_out = 0.2\n{extra}"
+        );
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let err = fails(MOVER, &["--config", &config(1, "speed = 2\n"), "--out", dir.to_str().unwrap()]);
+    assert!(err.contains("mover-1.toml") && err.contains("speed"), "{err}");
+    let train = |config: &str, out: &Path, extra: &[&str]| {
+        let output = Command::new(MOVER)
+            .args(["--config", config, "--out", out.to_str().unwrap()])
+            .args(extra)
+            .output();
+        let output = output.unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    };
+    let (once, twice) = (dir.join("once"), dir.join("twice"));
+    train(&config(2, ""), &once, &[]);
+    train(&config(1, ""), &twice, &[]);
+    let err = fails(MOVER, &["--config", &config(2, ""), "--out", twice.to_str().unwrap()]);
+    assert!(err.contains("mover.ckpt exists") && err.contains("--resume"), "{err}");
+    train(&config(2, ""), &twice, &["--resume"]);
+    let weights = |run: &Path| {
+        let file = model::MoverCheckpoint::load(&run.join("mover.ckpt")).unwrap();
+        assert!(file.optimizer.is_some());
+        file.weights_checksum()
+    };
+    assert_eq!(weights(&once), weights(&twice));
+    let shipped = dir.join("shipped.ckpt");
+    let output = Command::new(EXPORT)
+        .args([once.join("mover.ckpt").to_str().unwrap(), shipped.to_str().unwrap(), "--dtype", "f32"])
+        .output()
+        .unwrap();
+    assert!(output.status.success() && String::from_utf8_lossy(&output.stdout).contains("move model"));
+    let file = model::MoverCheckpoint::load(&shipped).unwrap();
+    assert_eq!((file.optimizer.is_none(), file.weights_checksum()), (true, weights(&once)));
+}

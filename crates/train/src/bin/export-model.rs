@@ -3,20 +3,21 @@
 //! `export-model runs/coarse/coarse.ckpt models/coarse.ckpt [--dtype f16|f32]`
 //!
 //! Drops the optimizer state and stores the weights in half precision by default; the model
-//! configuration, stage and the trainer's record (steps, seconds, final losses) are kept.
+//! configuration, stage and the trainer's record (steps, seconds, final losses) are kept. A
+//! mover's file (`train-mover`'s) is exported the same way.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use burn::tensor::DType;
 use clap::{Parser, ValueEnum};
-use model::Checkpoint;
+use model::{Checkpoint, CheckpointError, MOVER_STAGE, MoverCheckpoint};
 
 /// Export a training checkpoint for inference.
 #[derive(Parser, Debug)]
 #[command(name = "export-model", version)]
 struct Args {
-    /// A checkpoint written by train-coarse or train-refine.
+    /// A checkpoint written by train-coarse, train-refine or train-mover.
     input: PathBuf,
     /// Where to write the inference checkpoint (atomically; never over the input).
     output: PathBuf,
@@ -43,18 +44,21 @@ fn main() -> ExitCode {
         eprintln!("export-model: {err}");
         return ExitCode::FAILURE;
     }
-    let exported = Checkpoint::load(&args.input)
-        .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
-        .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint));
+    let exported = match MoverCheckpoint::load(&args.input) {
+        // Not a mover's file: E_c's or E_r's, or the error reading it as one says why not.
+        Err(CheckpointError::Format { .. } | CheckpointError::WrongStage { .. }) => {
+            Checkpoint::load(&args.input)
+                .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
+                .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint.stage.name()))
+        }
+        read => read
+            .and_then(|file| file.for_inference(dtype, &args.input))
+            .and_then(|file| file.save(&args.output).map(|()| MOVER_STAGE)),
+    };
     match exported {
-        Ok(checkpoint) => {
+        Ok(stage) => {
             let bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
-            println!(
-                "{}: {} model, {:.1} MB",
-                args.output.display(),
-                checkpoint.stage.name(),
-                bytes as f64 / 1e6
-            );
+            println!("{}: {stage} model, {:.3} MB", args.output.display(), bytes as f64 / 1e6);
             ExitCode::SUCCESS
         }
         Err(err) => {

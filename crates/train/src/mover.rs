@@ -1,0 +1,589 @@
+//! Training the mover (E_m, [`model::Mover`]): its teacher, the samples the teacher makes, and
+//! the resumable regression on them (`train-mover`).
+//!
+//! The teacher is the best one batched pass can do: for every outline of SuperSVG-B's drawing
+//! (the background aside), its points moved by the exact optimizer (Adam on
+//! [`raster::Window`], F's step size) against the outline's box with the rest of the drawing
+//! held. Each point's move along its normal is the mover's target; its profile
+//! ([`model::profile`]) the input. The samples of each image are made once and stored in the
+//! run's folder, so a resumed run reads them back.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, Tensor, TensorData};
+use common::PixelBox;
+use common::decode::load;
+use common::write::write_atomic;
+use image::Rgb32FImage;
+use infer::{FinetuneOptions, Job, Models, Moves, Origin, PathBudget, Scene, run};
+use model::{MAX_MOVE, Mover, MoverCheckpoint, PROFILE_LEN, frames, profile};
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use raster::{Fill, FlatAdam, Outline, Shape, Window};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::stop::{catch_interrupts, interrupted};
+
+/// `train-mover`'s configuration (`configs/mover.toml`); unknown keys are refused.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoverConfig {
+    /// The drawings the teacher moves.
+    pub data: MoverData,
+    /// The teacher's optimizer.
+    pub teacher: Teacher,
+    /// The regression.
+    pub train: MoverTraining,
+}
+
+/// The drawings the teacher moves: SuperSVG-B's (defaults, the mover off) of each image at
+/// each budget.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoverData {
+    /// Image files, relative to the working folder.
+    pub images: Vec<PathBuf>,
+    /// Path budgets.
+    pub paths: Vec<usize>,
+    /// Long side of the working image, as `infer --size`.
+    pub size: u32,
+}
+
+/// How the teacher finds each outline's move.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Teacher {
+    /// Adam steps on an outline's points (the best state is kept).
+    pub steps: usize,
+    /// Pixels around what an outline can change that its box also scores.
+    pub pad: u32,
+}
+
+/// The regression of the teacher's moves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoverTraining {
+    /// Passes over the samples.
+    pub epochs: usize,
+    /// Samples a step.
+    pub batch: usize,
+    /// Adam's learning rate.
+    pub learning_rate: f64,
+    /// Seeds the held-out split, the order of the samples and the initial weights.
+    pub seed: u64,
+    /// The share of the samples held out to score each epoch.
+    pub held_out: f64,
+}
+
+/// Why a mover could not be trained; each names the file or setting.
+#[derive(Debug, thiserror::Error)]
+pub enum MoverError {
+    /// The configuration file could not be read or holds an unknown key or a bad value.
+    #[error("{path}: {problem}")]
+    Config {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        problem: String,
+    },
+    /// An image could not be read or drawn.
+    #[error("{path}: {problem}")]
+    Image {
+        /// The image.
+        path: PathBuf,
+        /// What went wrong.
+        problem: String,
+    },
+    /// A samples file or the run's folder could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The reason.
+        source: std::io::Error,
+    },
+    /// A samples file is not a whole number of samples.
+    #[error("{0}: not a samples file (damaged?): delete it and the run makes it again")]
+    Samples(PathBuf),
+    /// The checkpoint could not be written or read back.
+    #[error(transparent)]
+    Checkpoint(#[from] model::CheckpointError),
+    /// The optimizer state could not be stored or restored.
+    #[error("{path}: optimizer state: {problem}")]
+    Optimizer {
+        /// The checkpoint.
+        path: PathBuf,
+        /// burn's reason.
+        problem: String,
+    },
+    /// A finished or stopped run's folder, not resumed or overwritten.
+    #[error("{0} exists: pass --resume to continue it or --overwrite to start afresh")]
+    Exists(PathBuf),
+    /// The run was stopped (Ctrl-C, SIGTERM); the checkpoint holds what was done.
+    #[error("interrupted in epoch {epoch}, after step {step}; --resume continues from {}", .checkpoint.display())]
+    Interrupted {
+        /// The epoch it stopped in, from 1 (0 while the teacher's samples were being made).
+        epoch: usize,
+        /// Steps done.
+        step: usize,
+        /// The checkpoint written.
+        checkpoint: PathBuf,
+    },
+}
+
+impl MoverConfig {
+    /// The configuration in `path`, checked.
+    pub fn load(path: &Path) -> Result<Self, MoverError> {
+        let problem = |problem: String| MoverError::Config { path: path.to_path_buf(), problem };
+        let text = std::fs::read_to_string(path).map_err(|e| problem(e.to_string()))?;
+        let config: Self = toml::from_str(&text).map_err(|e| problem(e.to_string()))?;
+        let checks = [
+            (config.data.images.is_empty(), "data.images is empty"),
+            (
+                config.data.paths.iter().any(|&p| !(infer::MIN_PATHS..=infer::MAX_PATHS).contains(&p)),
+                "data.paths",
+            ),
+            (config.data.paths.is_empty(), "data.paths is empty"),
+            (!(16..=8192).contains(&config.data.size), "data.size: 16 to 8192"),
+            (config.train.batch == 0, "train.batch: at least 1"),
+            (config.train.epochs == 0, "train.epochs: at least 1"),
+            (!(config.train.learning_rate > 0.0), "train.learning_rate: above 0"),
+            (!(0.0..0.5).contains(&config.train.held_out), "train.held_out: from 0 to below 0.5"),
+        ];
+        match checks.iter().find(|(bad, _)| *bad) {
+            Some((_, what)) => Err(problem(what.to_string())),
+            None => Ok(config),
+        }
+    }
+}
+
+/// The state a mover checkpoint stores for resuming: where the run is and how it scored.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct MoverState {
+    /// Steps done.
+    pub step: usize,
+    /// Seconds of regression so far (the teacher's not counted).
+    pub seconds: f64,
+    /// The held-out squared error of each finished epoch's moves, px².
+    pub held_out: Vec<f64>,
+    /// The held-out squared error of moving nothing, px².
+    pub still: f64,
+    /// The configuration, as run.
+    pub config: MoverConfig,
+}
+
+/// One sample: a point's profile and the teacher's move along its normal, in pixels.
+pub type Sample = [f32; PROFILE_LEN + 1];
+
+/// The teacher's samples of `scene` (SuperSVG-B's drawing): each point of each outline but the
+/// background, its profile and its optimum move along the normal within [`MAX_MOVE`].
+pub fn teach(scene: &Scene, teacher: &Teacher, rates: &FinetuneOptions) -> Vec<Sample> {
+    let target = scene.target();
+    let canvas = scene.canvas_image();
+    let size = target.dimensions();
+    let outlines: Vec<Outline> = (scene.scene().iter())
+        .map(|shape| match shape {
+            Shape::Outline(outline) => (**outline).clone(),
+            Shape::Path(path) => Outline::from_path(path, path.color).expect("a drawn path is finite"),
+        })
+        .collect();
+    let room = Room::of(target, teacher.pad);
+    let boxes: Vec<Option<PixelBox>> = outlines.iter().map(|o| room.pixel_box(o)).collect();
+    (0..outlines.len())
+        .into_par_iter()
+        .filter(|&i| scene.paths()[i].origin != Origin::Background)
+        .flat_map_iter(|i| {
+            let moved = room.optimum(&outlines, &boxes, i, teacher.steps, false, rates).points();
+            let frames = frames(&outlines[i], size);
+            let (target, canvas) = (&target, &canvas);
+            frames.into_iter().zip(moved).filter(|(frame, _)| frame.normal != [0.0; 2]).map(
+                move |(frame, q)| {
+                    let (w, h) = (size.0 as f32, size.1 as f32);
+                    let (dx, dy) = (q[0] * w - frame.at[0], q[1] * h - frame.at[1]);
+                    let distance = (dx * frame.normal[0] + dy * frame.normal[1]).clamp(-MAX_MOVE, MAX_MOVE);
+                    let mut sample = [0.0; PROFILE_LEN + 1];
+                    sample[..PROFILE_LEN].copy_from_slice(&profile(target, canvas, &frame));
+                    sample[PROFILE_LEN] = distance;
+                    sample
+                },
+            )
+        })
+        .collect()
+}
+
+/// An image as the exact renderer scores a box of it: where the teacher moves a drawing's
+/// outlines one at a time, each against its own box with the rest of the drawing held.
+pub struct Room {
+    width: u32,
+    height: u32,
+    /// Pixels around what an outline can change that its box also scores.
+    pad: u32,
+    /// The image, planar RGB `[3][height][width]`.
+    target: Vec<f32>,
+}
+
+impl Room {
+    /// The room of `image`, boxes grown by `pad` pixels.
+    pub fn of(image: &Rgb32FImage, pad: u32) -> Self {
+        let (width, height) = image.dimensions();
+        let target = (0..3).flat_map(|c| image.pixels().map(move |p| p.0[c])).collect();
+        Self { width, height, pad, target }
+    }
+
+    /// The pixels `outline` can change, grown by the pad within the image: the box its move is
+    /// scored over. `None` when it has no finite point.
+    pub fn pixel_box(&self, outline: &Outline) -> Option<PixelBox> {
+        let bbox = raster::Filled::pixel_box(outline, self.width, self.height)?;
+        Some(bbox.padded(self.pad, self.width, self.height))
+    }
+
+    /// Outline `i` of `outlines` moved to its optimum over its box (`boxes`: each outline's
+    /// [`Room::pixel_box`]) with every other outline held: its points, and with `paint` its
+    /// flat colour and opacity too (a ramp keeps its stops and ends), by `steps` Adam steps at
+    /// F's step sizes, the best state kept. An outline without a box stays as it is.
+    pub fn optimum(
+        &self,
+        outlines: &[Outline],
+        boxes: &[Option<PixelBox>],
+        i: usize,
+        steps: usize,
+        paint: bool,
+        rates: &FinetuneOptions,
+    ) -> Outline {
+        let Some(bbox) = boxes[i] else { return outlines[i].clone() };
+        let (cw, ch) = (bbox.width() as usize, bbox.height() as usize);
+        let (sx, sy) = (self.width as f32 / cw as f32, self.height as f32 / ch as f32);
+        let (ox, oy) = (bbox.x0() as f32 / cw as f32, bbox.y0() as f32 / ch as f32);
+        let to_box = |o: &Outline| mapped(o, |p| [p[0] * sx - ox, p[1] * sy - oy]);
+        let meeting = |range: std::ops::Range<usize>| -> Vec<Outline> {
+            (range.filter(|&k| boxes[k].is_some_and(|other| other.intersection(&bbox).is_some())))
+                .map(|k| to_box(&outlines[k]))
+                .collect()
+        };
+        let below = meeting(0..i);
+        let mut scene = vec![to_box(&outlines[i])];
+        scene.extend(meeting(i + 1..outlines.len()));
+        let mut target = Vec::with_capacity(3 * cw * ch);
+        let (width, height) = (self.width as usize, self.height as usize);
+        for c in 0..3 {
+            for y in bbox.rows() {
+                let row = (c * height + y as usize) * width;
+                target.extend_from_slice(&self.target[row + bbox.x0() as usize..row + bbox.x1() as usize]);
+            }
+        }
+        let white =
+            Window::new(cw as u32, ch as u32, vec![1.0; target.len()], target.clone()).expect("a box");
+        let window = Window::new(cw as u32, ch as u32, white.render_outlines(&below), target).expect("a box");
+        // Parameters: the points (x, y), then RGB and opacity; a pixel's step as F takes it.
+        let solid = match scene[0].fill {
+            Fill::Solid(color) => Some(color),
+            Fill::Linear(_) => None,
+        };
+        let mut params: Vec<f32> = scene[0].points().into_iter().flatten().collect();
+        let n = params.len();
+        params.extend(solid.unwrap_or_default());
+        params.push(scene[0].alpha);
+        let mut step: Vec<f32> =
+            (0..n).map(|k| rates.lr_outline_points * if k % 2 == 0 { sx } else { sy }).collect();
+        step.extend([if paint && solid.is_some() { rates.lr_colors } else { 0.0 }; 4]);
+        let set = |scene: &mut Vec<Outline>, params: &[f32]| {
+            let points: Vec<[f32; 2]> = params[..n].chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+            let mut outline = scene[0].with_points(&points);
+            if solid.is_some() {
+                outline.fill = Fill::Solid([params[n], params[n + 1], params[n + 2]]);
+            }
+            outline.alpha = params[n + 3];
+            scene[0] = outline;
+        };
+        // Adam keeps every value in [0, 1]: the points within the box, colour and opacity.
+        let mut adam = FlatAdam::new(params.len());
+        let mut best = (f64::INFINITY, params.clone());
+        for _ in 0..steps {
+            set(&mut scene, &params);
+            let (loss, gradients) = window.l2_gradient_outlines(&scene);
+            if loss < best.0 {
+                best = (loss, params.clone());
+            }
+            let g = &gradients[0];
+            let mut flat: Vec<f32> = g.points.iter().flatten().copied().collect();
+            flat.extend(g.color);
+            flat.push(g.alpha);
+            adam.step(&step, &mut params, &flat);
+        }
+        set(&mut scene, &params);
+        if window.l2_outlines(&scene) < best.0 {
+            best.1 = params;
+        }
+        set(&mut scene, &best.1);
+        mapped(&scene[0], |p| [(p[0] + ox) / sx, (p[1] + oy) / sy])
+    }
+}
+
+/// `outline` with its points and a ramp's ends mapped by `f` (its fill and opacity kept).
+fn mapped(outline: &Outline, f: impl Fn([f32; 2]) -> [f32; 2]) -> Outline {
+    let points: Vec<[f32; 2]> = outline.points().into_iter().map(&f).collect();
+    let mut moved = outline.with_points(&points);
+    if let Fill::Linear(mut ramp) = outline.fill {
+        (ramp.start, ramp.end) = (f(ramp.start), f(ramp.end));
+        moved.fill = Fill::Linear(ramp);
+    }
+    moved
+}
+
+/// Where a run keeps its checkpoint.
+pub fn mover_checkpoint(dir: &Path) -> PathBuf {
+    dir.join("mover.ckpt")
+}
+
+/// The teacher's samples of every image at every budget of `config`, each drawing's made once
+/// and kept in `DIR/samples/` (a resumed or repeated run reads them back).
+fn samples(config: &MoverConfig, dir: &Path, device: &Device) -> Result<Vec<Sample>, MoverError> {
+    let folder = dir.join("samples");
+    std::fs::create_dir_all(&folder).map_err(|source| MoverError::Io { path: folder.clone(), source })?;
+    // B as `infer` draws it, without a mover (the one trained here moves what this draws).
+    let bundled = |built_in| {
+        infer::bundled(built_in)
+            .map_err(|e| MoverError::Config { path: PathBuf::from(built_in.name), problem: e.to_string() })
+    };
+    let (coarse, refine) = (bundled(&infer::BUILT_IN_COARSE)?, bundled(&infer::BUILT_IN_REFINE)?);
+    let models = Models::from_sources(&coarse, Some(&refine), device)?;
+    let rates = FinetuneOptions::default();
+    let mut all = Vec::new();
+    for (index, image) in config.data.images.iter().enumerate() {
+        for &paths in &config.data.paths {
+            if interrupted() {
+                return Err(MoverError::Interrupted { epoch: 0, step: 0, checkpoint: mover_checkpoint(dir) });
+            }
+            let stem = image.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+            let file = folder.join(format!("{index:03}-{stem}-{paths}.f32"));
+            if file.exists() {
+                all.extend(read_samples(&file)?);
+                continue;
+            }
+            let failed = |problem: String| MoverError::Image { path: image.clone(), problem };
+            let started = Instant::now();
+            let loaded = load(image, config.data.size).map_err(|e| failed(e.to_string()))?;
+            let job = Job { paths: PathBudget::Count(paths), moves: Moves::Off, ..Job::default() };
+            let drawn = run(&models, &loaded, &job, device).map_err(|e| failed(e.to_string()))?;
+            let made = teach(&drawn.scene, &config.teacher, &rates);
+            let bytes: Vec<u8> = made.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+            write_atomic(&file, &bytes).map_err(|source| MoverError::Io { path: file.clone(), source })?;
+            eprintln!(
+                "{} at {paths} paths: {} points in {:.1} s",
+                image.display(),
+                made.len(),
+                started.elapsed().as_secs_f64()
+            );
+            all.extend(made);
+        }
+    }
+    Ok(all)
+}
+
+/// The samples [`samples`] stored in `file`.
+fn read_samples(file: &Path) -> Result<Vec<Sample>, MoverError> {
+    let bytes = std::fs::read(file).map_err(|source| MoverError::Io { path: file.to_path_buf(), source })?;
+    let width = 4 * (PROFILE_LEN + 1);
+    if bytes.len() % width != 0 {
+        return Err(MoverError::Samples(file.to_path_buf()));
+    }
+    Ok(bytes
+        .chunks_exact(width)
+        .map(|row| {
+            std::array::from_fn(|k| f32::from_le_bytes(row[4 * k..4 * k + 4].try_into().expect("4 bytes")))
+        })
+        .collect())
+}
+
+/// How a mover run starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Begin {
+    /// Afresh; a folder that holds a checkpoint is refused.
+    Fresh,
+    /// Afresh, replacing the folder's checkpoint (its samples are kept).
+    Overwrite,
+    /// From the folder's checkpoint.
+    Resume,
+}
+
+/// What a finished run reports.
+#[derive(Clone, Debug)]
+pub struct MoverSummary {
+    /// Its state at the end.
+    pub state: MoverState,
+    /// The checkpoint.
+    pub checkpoint: PathBuf,
+}
+
+/// Trains a mover as `config` says in `dir` on `device` (an autodiff device): the teacher's
+/// samples first (kept in `dir`), then `train.epochs` of Adam on the squared error of the
+/// predicted moves, a checkpoint after each epoch and when stopped.
+pub fn train_mover(
+    config: &MoverConfig,
+    dir: &Path,
+    begin: Begin,
+    device: &Device,
+) -> Result<MoverSummary, MoverError> {
+    catch_interrupts();
+    std::fs::create_dir_all(dir).map_err(|source| MoverError::Io { path: dir.to_path_buf(), source })?;
+    let checkpoint = mover_checkpoint(dir);
+    if begin == Begin::Fresh && checkpoint.exists() {
+        return Err(MoverError::Exists(checkpoint));
+    }
+    let resumed = match begin {
+        Begin::Resume => Some(MoverCheckpoint::load(&checkpoint)?),
+        _ => None,
+    };
+    let mut samples = samples(config, dir, &device.clone().inner())?;
+    let mut rng = ChaCha8Rng::seed_from_u64(config.train.seed);
+    samples.shuffle(&mut rng);
+    let held = ((samples.len() as f64 * config.train.held_out) as usize).min(samples.len());
+    let (held, learn) = samples.split_at(held);
+    let optimizer_error = |problem: String| MoverError::Optimizer { path: checkpoint.clone(), problem };
+    let mut optimizer: ModuleOptimizer = AdamConfig::new().init();
+    let (mut mover, mut state) = match resumed {
+        Some(file) => {
+            let mover = file.build(device, &checkpoint)?;
+            let bytes = file.optimizer.clone().ok_or_else(|| optimizer_error("none stored".into()))?;
+            optimizer = optimizer.from_bytes(bytes).map_err(|e| optimizer_error(e.to_string()))?;
+            let state: MoverState = serde_json::from_str(file.training.as_deref().unwrap_or(""))
+                .map_err(|e| optimizer_error(format!("trainer state: {e}")))?;
+            // The run goes on as the configuration now says (more epochs, say).
+            (mover, MoverState { config: config.clone(), ..state })
+        }
+        None => {
+            device.seed(config.train.seed);
+            let still = mean_square(held, std::iter::repeat(0.0));
+            (
+                Mover::new(device),
+                MoverState { step: 0, seconds: 0.0, held_out: Vec::new(), still, config: config.clone() },
+            )
+        }
+    };
+    let save = |mover: &Mover, optimizer: &ModuleOptimizer, state: &MoverState| -> Result<(), MoverError> {
+        let mut file = MoverCheckpoint::of_model(mover);
+        file.optimizer = Some(optimizer.into_bytes().map_err(|e| optimizer_error(e.to_string()))?);
+        file.training = Some(serde_json::to_string(state).expect("the state serializes"));
+        Ok(file.save(&checkpoint)?)
+    };
+    let batches = learn.len().div_ceil(config.train.batch);
+    eprintln!(
+        "{} samples, {} held out; moving nothing errs {:.4} px² there",
+        learn.len(),
+        held.len(),
+        state.still
+    );
+    while state.step < batches * config.train.epochs {
+        let epoch = state.step / batches;
+        let mut order: Vec<usize> = (0..learn.len()).collect();
+        order.shuffle(&mut ChaCha8Rng::seed_from_u64(config.train.seed.wrapping_add(1 + epoch as u64)));
+        let started = Instant::now();
+        for batch in order.chunks(config.train.batch).skip(state.step % batches) {
+            if interrupted() {
+                state.seconds += started.elapsed().as_secs_f64();
+                save(&mover, &optimizer, &state)?;
+                return Err(MoverError::Interrupted { epoch: epoch + 1, step: state.step, checkpoint });
+            }
+            let rows: Vec<&Sample> = batch.iter().map(|&k| &learn[k]).collect();
+            let (inputs, targets) = tensors(&rows, device);
+            let loss = (mover.forward(inputs) - targets).powi_scalar(2).mean();
+            let grads = GradientsParams::from_grads(loss.backward(), &mover);
+            mover = optimizer.step(config.train.learning_rate, mover, grads);
+            state.step += 1;
+        }
+        state.seconds += started.elapsed().as_secs_f64();
+        let scored = mover.valid();
+        let inner = device.clone().inner();
+        let error = mean_square_of(&scored, held, &inner);
+        state.held_out.push(error);
+        eprintln!(
+            "epoch {}: held-out {error:.4} px² (still {:.4}), {:.0} s",
+            epoch + 1,
+            state.still,
+            state.seconds
+        );
+        save(&mover, &optimizer, &state)?;
+    }
+    Ok(MoverSummary { state, checkpoint })
+}
+
+/// The profiles and targets of `rows` as tensors on `device`.
+fn tensors(rows: &[&Sample], device: &Device) -> (Tensor<2>, Tensor<1>) {
+    let inputs: Vec<f32> = rows.iter().flat_map(|row| row[..PROFILE_LEN].iter().copied()).collect();
+    let targets: Vec<f32> = rows.iter().map(|row| row[PROFILE_LEN]).collect();
+    (
+        Tensor::from_data(TensorData::new(inputs, [rows.len(), PROFILE_LEN]), device),
+        Tensor::from_data(TensorData::new(targets, [rows.len()]), device),
+    )
+}
+
+/// The mean squared error of `moves` (one a sample) on `samples`, px².
+fn mean_square(samples: &[Sample], moves: impl Iterator<Item = f32>) -> f64 {
+    let sum: f64 = samples.iter().zip(moves).map(|(s, m)| f64::from((m - s[PROFILE_LEN]).powi(2))).sum();
+    sum / samples.len().max(1) as f64
+}
+
+/// The mean squared error of `mover`'s moves (as inference clamps them) on `samples`, px².
+fn mean_square_of(mover: &Mover, samples: &[Sample], device: &Device) -> f64 {
+    let mut predicted = Vec::with_capacity(samples.len());
+    for chunk in samples.chunks(65_536) {
+        let profiles: Vec<f32> = chunk.iter().flat_map(|row| row[..PROFILE_LEN].iter().copied()).collect();
+        predicted.extend(mover.moves(profiles, device));
+    }
+    mean_square(samples, predicted.into_iter())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use image::{Rgb, Rgb32FImage};
+    use infer::Placed;
+    use raster::Path as RasterPath;
+    use superpixel::Segmentation;
+
+    use super::*;
+
+    /// A dark square drawn 2 px inside the one in the image: the teacher moves every corner
+    /// outward, toward the image's edge, and makes one sample a corner (the background is not
+    /// its to move).
+    #[test]
+    fn the_teacher_moves_a_shrunk_square_out_to_its_edge() {
+        let size = 256u32;
+        let (lo, hi) = (96.0, 160.0);
+        let inside = |v: u32| (lo..hi).contains(&(v as f32 + 0.5));
+        let target = Rgb32FImage::from_fn(size, size, |x, y| {
+            if inside(x) && inside(y) { Rgb([0.1, 0.2, 0.3]) } else { Rgb([0.9; 3]) }
+        });
+        let segmentation = Segmentation::flat_areas(&target, 4).unwrap();
+        let mut scene = Scene::new(Arc::new(target), Arc::new(segmentation));
+        let unit = |v: f32| v / size as f32;
+        let background =
+            RasterPath::quadrilateral([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], [0.9; 3], 1.0);
+        let (a, b) = (unit(lo + 2.0), unit(hi - 2.0));
+        let square = Outline::polygon(&[[a, a], [b, a], [b, b], [a, b]], [0.1, 0.2, 0.3], 1.0).unwrap();
+        assert!(scene.push(Placed { shape: background.into(), region: None, origin: Origin::Background }));
+        assert!(scene.push(Placed {
+            shape: square.clone().into(),
+            region: Some(1),
+            origin: Origin::Fallback
+        }));
+        let samples = teach(&scene, &Teacher { steps: 60, pad: 5 }, &FinetuneOptions::default());
+        assert_eq!(samples.len(), 4);
+        let centre = (lo + hi) / 2.0;
+        for (sample, frame) in samples.iter().zip(frames(&square, (size, size))) {
+            let moved = frame.moved(sample[PROFILE_LEN], (size, size)).map(|v| v * size as f32);
+            let out = (moved[0] - centre).abs().min((moved[1] - centre).abs());
+            assert!(
+                out > (hi - lo) / 2.0 - 2.0 + 0.5,
+                "{frame:?} moved {} px to {moved:?}",
+                sample[PROFILE_LEN]
+            );
+        }
+    }
+}
