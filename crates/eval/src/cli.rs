@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use burn::tensor::Device;
-use infer::{BUILT_IN_COARSE, BUILT_IN_REFINE, ModelSource, Models, ModelsError, bundled};
+use infer::{BUILT_IN_COARSE, BUILT_IN_MOVER, BUILT_IN_REFINE, ModelSource, Models, ModelsError, bundled};
 
 /// Prints a failed run's error and gives the exit code: 0 on success, 1 on error.
 pub fn finish(result: anyhow::Result<()>) -> ExitCode {
@@ -40,11 +40,12 @@ fn shell_quoted(arg: &str) -> String {
     }
 }
 
-/// Both models, from the given checkpoints or the bundled ones (each network's
+/// E_c, E_r and the mover, from the given checkpoints or the bundled ones (each network's
 /// [`infer::Identity`] says which).
 pub fn load_models(
     coarse: Option<&Path>,
     refine: Option<&Path>,
+    mover: Option<&Path>,
     device: &Device,
 ) -> Result<Models, ModelsError> {
     let source = |path: Option<&Path>, built_in| match path {
@@ -53,7 +54,8 @@ pub fn load_models(
     };
     let coarse = source(coarse, &BUILT_IN_COARSE)?;
     let refine = source(refine, &BUILT_IN_REFINE)?;
-    Ok(Models::from_sources(&coarse, Some(&refine), device)?)
+    let mover = source(mover, &BUILT_IN_MOVER)?;
+    Ok(Models::from_sources(&coarse, Some(&refine), device)?.with_mover(&mover, device)?)
 }
 
 #[cfg(test)]

@@ -26,12 +26,16 @@ pub const SPILL_DILATION: u32 = dpw::BOUNDARY_DILATION as u32;
 pub enum Method {
     /// SuperSVG-B at the budget.
     OursB,
-    /// SuperSVG-F: B fine-tuned.
+    /// SuperSVG-F: B (without the mover) fine-tuned.
     OursF,
+    /// SuperSVG-F from what the mover moved: B fine-tuned as long.
+    OursFMoved,
     /// SuperSVG-B with `--paths auto`.
     OursAuto,
     /// SuperSVG-B without E_r.
     OursNoRefine,
+    /// SuperSVG-B without the mover.
+    OursNoMoves,
     /// SuperSVG-B at the paper's operating point.
     OursPaper,
     /// SuperSVG-B with the exact optimizer in E_r's place.
@@ -59,8 +63,10 @@ impl Method {
         match self {
             Method::OursB => "SuperSVG-B (ours)",
             Method::OursF => "SuperSVG-F (ours)",
+            Method::OursFMoved => "SuperSVG-F from B and the mover (--moves on)",
             Method::OursAuto => "SuperSVG-B (ours), --paths auto",
             Method::OursNoRefine => "SuperSVG-B without E_r (--no-refine)",
+            Method::OursNoMoves => "SuperSVG-B without the mover (--moves off)",
             Method::OursPaper => "SuperSVG-B, the paper's inference (--operating-point paper)",
             Method::OursOptimizer => "SuperSVG-B, the exact optimizer in E_r's place (--refiner optimizer)",
             Method::OursLinear => "SuperSVG-B, regions filled with ramps (--fills linear)",
@@ -79,8 +85,10 @@ impl Method {
             self,
             Method::OursB
                 | Method::OursF
+                | Method::OursFMoved
                 | Method::OursAuto
                 | Method::OursNoRefine
+                | Method::OursNoMoves
                 | Method::OursPaper
                 | Method::OursOptimizer
                 | Method::OursLinear
@@ -94,8 +102,10 @@ impl Method {
     pub fn svg_name(self, stem: &str, budget: Budget) -> String {
         let prefix = match self {
             Method::OursF => "f",
+            Method::OursFMoved => "f-moved",
             Method::Fallback => "fallback",
             Method::OursNoRefine => "no-refine",
+            Method::OursNoMoves => "no-moves",
             Method::OursPaper => "paper",
             Method::OursOptimizer => "optimizer",
             Method::OursLinear => "linear",
@@ -246,7 +256,10 @@ impl Vectorizer for Ours<'_> {
     }
 
     fn sweeps(&self) -> bool {
-        matches!(self.method, Method::OursB | Method::Fallback | Method::OursLinear | Method::OursFlat)
+        matches!(
+            self.method,
+            Method::OursB | Method::Fallback | Method::OursLinear | Method::OursFlat | Method::OursNoMoves
+        )
     }
 
     fn draw(&self, input: &Input, budget: Budget) -> Result<Option<Drawing>, DrawError> {
@@ -262,9 +275,11 @@ impl Vectorizer for Ours<'_> {
     }
 }
 
-/// SuperSVG-F: SuperSVG-B at the budget, then every path fine-tuned.
+/// SuperSVG-F: SuperSVG-B at the budget (as its job says: with or without the mover), then
+/// every path fine-tuned.
 pub struct Finetuned<'a> {
-    /// B, which F starts from.
+    /// B, which F starts from; its method is the row's ([`Method::OursF`] or
+    /// [`Method::OursFMoved`]).
     pub base: Ours<'a>,
     /// How long F runs.
     pub options: FinetuneOptions,
@@ -272,7 +287,7 @@ pub struct Finetuned<'a> {
 
 impl Vectorizer for Finetuned<'_> {
     fn method(&self) -> Method {
-        Method::OursF
+        self.base.method
     }
 
     fn draw(&self, input: &Input, budget: Budget) -> Result<Option<Drawing>, DrawError> {

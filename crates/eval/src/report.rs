@@ -282,6 +282,7 @@ fn colour(method: Method) -> usize {
         Method::Fallback => 1,
         Method::Vtracer => 2,
         Method::OursLinear => 4,
+        Method::OursNoMoves => 5,
         Method::OursFlat => 6,
         _ => 3,
     }

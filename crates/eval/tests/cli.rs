@@ -142,7 +142,7 @@ fn svgs_are_what_infer_writes() {
     std::fs::create_dir_all(&written_to).unwrap();
     let (out, svgs) = (written_to.join("report.md"), written_to.join("svgs"));
     let device = burn::tensor::Device::flex();
-    let models = eval::load_models(None, None, &device).unwrap();
+    let models = eval::load_models(None, None, None, &device).unwrap();
     let image = common::decode::load(&dir.join("a.png"), 48).unwrap();
     // infer's default fills, and the ones `--fills` names.
     for (flags, fills) in [(&[][..], None), (&["--fills", "linear"][..], Some(infer::Fills::Linear))] {

@@ -22,7 +22,9 @@ use eval::{
     Vectorizer, Vtracer, VtracerSettings, available, command_line, finish, load_models, rate_chart,
     rate_section, render_chart, report, sweep_points,
 };
-use infer::{AutoRule, Fills, FinetuneOptions, Job, Limit, OPTIMIZER_STEPS, PathBudget, Refiner, Split};
+use infer::{
+    AutoRule, Fills, FinetuneOptions, Job, Limit, Moves, OPTIMIZER_STEPS, PathBudget, Refiner, Split,
+};
 use raster::Backend;
 
 /// What `--peers` can add beside SuperSVG.
@@ -34,10 +36,14 @@ enum Peer {
     Potrace,
     /// SLIC regions filled with their mean colour, pixel-exact.
     Slic,
-    /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1 --no-refine` draws it.
+    /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1 --no-refine --moves
+    /// off` draws it.
     Fallback,
     /// SuperSVG-B without E_r: as `infer --paths N --no-refine` draws it (what E_r adds).
     NoRefine,
+    /// SuperSVG-B without the mover: as `infer --paths N --moves off` draws it (what the mover
+    /// adds; swept, so the chart compares them at equal file size).
+    NoMoves,
     /// The paper's inference with the same models: as `infer --paths N --operating-point paper`
     /// draws it (for models trained with the paper preset, beside the paper's tables).
     Paper,
@@ -59,14 +65,16 @@ struct Args {
     /// Path budgets, comma separated (each 2 to 20 000).
     #[arg(long, value_delimiter = ',', default_value = "500,2000", allow_hyphen_values = true)]
     paths: Vec<usize>,
-    /// Also run SuperSVG-F, fine-tuning for this many seconds per image.
+    /// Also run SuperSVG-F, fine-tuning for this many seconds per image: from B as `infer
+    /// --finetune-secs` does (the mover off), and from B and the mover (`--moves on`).
     #[arg(long, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
     /// The markdown report to write; the contact sheet goes next to it as PNG.
     #[arg(long)]
     out: PathBuf,
     /// Also write SuperSVG's SVGs into this folder (`IMAGE-b-500.svg`, `IMAGE-f-500.svg`,
-    /// `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`,
+    /// `IMAGE-f-moved-500.svg`, `IMAGE-auto.svg`, `IMAGE-fallback-500.svg`, `IMAGE-no-refine-500.svg`,
+    /// `IMAGE-no-moves-500.svg`,
     /// `IMAGE-paper-500.svg`, `IMAGE-optimizer-500.svg`, `IMAGE-linear-500.svg`, `IMAGE-flat-500.svg`): the files `infer`
     /// writes with the same settings.
     #[arg(long)]
@@ -77,6 +85,9 @@ struct Args {
     /// Refinement-model checkpoint (default: the bundled one).
     #[arg(long)]
     refine: Option<PathBuf>,
+    /// The mover's checkpoint (default: the bundled one).
+    #[arg(long)]
+    mover: Option<PathBuf>,
     /// Compute backend: flex, ndarray or wgpu.
     #[arg(long, default_value = "flex")]
     backend: Backend,
@@ -84,7 +95,7 @@ struct Args {
     #[arg(long, default_value_t = 512, allow_hyphen_values = true)]
     size: u32,
     /// Peers, comma separated; empty for none.
-    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic,fallback,no-refine")]
+    #[arg(long, value_delimiter = ',', default_value = "vtracer,potrace,slic,fallback,no-refine,no-moves")]
     peers: Vec<PeerArg>,
     /// Evaluate only the first N images.
     #[arg(long)]
@@ -207,7 +218,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
     }
     let device = args.backend.device()?;
-    let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
+    let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), args.mover.as_deref(), &device)?;
     // The fallback and no-refine rows draw without E_r (for the fallback: a region that lowers
     // nothing is not drawn, and E_r would spend what it leaves), as `infer --no-refine` does.
     let regions_only = infer::Models { refine: None, ..models.clone() };
@@ -238,15 +249,22 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     let ours = |method, models, job: Job| Ours { method, models, job, device: &device };
     let mut methods: Vec<Box<dyn Vectorizer + '_>> =
         vec![Box::new(ours(Method::OursB, &models, job.clone()))];
+    let unmoved = Job { moves: Moves::Off, ..job.clone() };
     if args.wants(Peer::Fallback) {
-        methods.push(Box::new(ours(Method::Fallback, &regions_only, job.clone())));
+        methods.push(Box::new(ours(Method::Fallback, &regions_only, unmoved.clone())));
     }
     if let Some(seconds) = args.finetune_secs {
         let options = FinetuneOptions { limit: Limit::Seconds(seconds), ..FinetuneOptions::default() };
-        methods.push(Box::new(Finetuned { base: ours(Method::OursB, &models, job.clone()), options }));
+        let moved = Job { moves: Moves::On, ..job.clone() };
+        for (method, job) in [(Method::OursF, unmoved.clone()), (Method::OursFMoved, moved)] {
+            methods.push(Box::new(Finetuned { base: ours(method, &models, job), options: options.clone() }));
+        }
     }
     if args.wants(Peer::NoRefine) {
         methods.push(Box::new(ours(Method::OursNoRefine, &regions_only, job.clone())));
+    }
+    if args.wants(Peer::NoMoves) {
+        methods.push(Box::new(ours(Method::OursNoMoves, &models, unmoved.clone())));
     }
     if args.wants(Peer::Paper) {
         let paper = Job { operating_point: Split::Paper, ..job.clone() };

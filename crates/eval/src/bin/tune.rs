@@ -121,7 +121,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let device = args.backend.device()?;
-    let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), &device)?;
+    let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), None, &device)?;
     let mut points = Vec::new();
     for &coarse_share in &args.coarse_share {
         for &refine_share in &args.refine_share {
