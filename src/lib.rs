@@ -7,8 +7,8 @@
 //! - [`raster`]: the path layout, the differentiable soft rasterizer, the exact renderer, SVG;
 //! - [`dpw`]: the training objectives (normalized L2, boundary, path efficiency, DPW);
 //! - [`superpixel`]: SLIC, region crops and paste-back;
-//! - [`model`]: the coarse and refinement networks and their checkpoints;
-//! - [`train`]: `train-coarse` and `train-refine`;
+//! - [`model`]: the coarse and refinement networks, the mover, and their checkpoints;
+//! - [`train`]: `train-coarse`, `train-refine` and `train-mover`;
 //! - [`infer`]: `infer` and the one call behind it ([`infer::run`]): the inference stages over
 //!   one scene, fine-tuning, the report.
 

@@ -1,6 +1,6 @@
 //! The mover's stage (E_m), after SuperSVG-B's: every point of every drawn outline moved along
-//! its normal in one batched pass ([`model::Mover`]), the moved points rounded to about
-//! [`MOVE_GRID`] of a working pixel and each moved outline's straight runs simplified within
+//! its normal in one batched pass ([`model::Mover`]), the moved points rounded to a grid of
+//! about [`MOVE_GRID`] of a working pixel and each moved outline's straight runs simplified within
 //! [`SIMPLIFY_PIXELS`], so that the edges it finds do not cost more bytes than they draw. The
 //! background stays under everything, as drawn. The pass is kept only where the whole drawing
 //! is better for it.
@@ -15,9 +15,9 @@ use raster::{Outline, Shape};
 
 use crate::scene::{Origin, Scene};
 
-/// Moved points are rounded to about this fraction of a working pixel: to the power of ten of
-/// output pixels nearest to it, so that a moved point costs the SVG one decimal at most (none
-/// where the output is four or more times the working image).
+/// Moved points are rounded to the power of ten of output pixels nearest (in ratio) to this
+/// fraction of a working pixel: a tenth of a pixel where the SVG is at the working size, whole
+/// pixels where it is 1.6 times larger or more. A moved point costs the SVG one decimal at most.
 pub const MOVE_GRID: f32 = 0.2;
 /// Moved outlines' straight runs are simplified within this many working pixels.
 pub const SIMPLIFY_PIXELS: f32 = 0.3;
