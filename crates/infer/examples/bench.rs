@@ -159,6 +159,7 @@ fn bench(args: &Args, infer: &Path, vtracer: bool, scratch: &Path) -> Result<(),
             ("superpixels", stage(|r| r.seconds.superpixels)),
             ("coarse", stage(|r| r.seconds.coarse)),
             ("refine", stage(|r| r.seconds.refine)),
+            ("moves", stage(|r| r.seconds.moves)),
             ("export", stage(|r| r.seconds.export)),
         ];
         let psnr = mean(runs.iter().map(|(_, r)| r.psnr));
@@ -167,7 +168,7 @@ fn bench(args: &Args, infer: &Path, vtracer: bool, scratch: &Path) -> Result<(),
         let networks = stage(|r| r.seconds.networks);
         let split: Vec<String> = stages.iter().map(|(name, s)| format!("{name} {s:.3}")).collect();
         println!(
-            "--paths {paths}: {seconds:.3} s median per image ({}; of coarse and refine, the networks \
+            "--paths {paths}: {seconds:.3} s median per image ({}; of coarse, refine and moves, the networks \
              {networks:.3}), {psnr:.2} dB, {:.1} KB, {drawn:.0} paths (means over {} images)",
             split.join(", "),
             bytes / 1000.0,

@@ -6,7 +6,7 @@
 //! is better for it.
 
 use burn::tensor::Device;
-use model::{Frame, Mover, frames, profile};
+use model::{Frame, Mover, PROFILE_LEN, frames, profile};
 use rayon::prelude::*;
 use serde::Serialize;
 use web_time::Instant;
@@ -20,7 +20,7 @@ use crate::scene::{Origin, Scene};
 /// pixels where it is 1.6 times larger or more. A moved point costs the SVG one decimal at most.
 pub const MOVE_GRID: f32 = 0.2;
 /// Moved outlines' straight runs are simplified within this many working pixels.
-pub const SIMPLIFY_PIXELS: f32 = 0.3;
+pub const SIMPLIFY_PIXELS: f32 = 0.4;
 
 /// What the mover did to one drawing: the schema of `infer --metrics`' `moves`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -54,9 +54,10 @@ pub fn move_outlines(mover: &Mover, scene: &mut Scene, original: (u32, u32), dev
         .par_iter()
         .map(|outline| outline.as_ref().map_or_else(Vec::new, |o| frames(o, size)))
         .collect();
-    let profiles: Vec<f32> = (frames.par_iter())
-        .flat_map_iter(|frames| frames.iter().flat_map(|frame| profile(&target, &canvas, frame)))
-        .collect();
+    let every: Vec<&Frame> = frames.iter().flatten().collect();
+    let mut profiles = vec![0.0; every.len() * PROFILE_LEN];
+    (profiles.par_chunks_mut(PROFILE_LEN).zip(&every))
+        .for_each(|(values, frame)| values.copy_from_slice(&profile(&target, &canvas, frame)));
     let moves = mover.moves(profiles, device);
     let network_seconds = clock.elapsed().as_secs_f64();
     let points = moves.len();

@@ -111,14 +111,21 @@ pub fn frames(outline: &Outline, (width, height): (u32, u32)) -> Vec<Frame> {
 
 /// What the mover reads at `frame`: the target's and the canvas's RGB at each of
 /// [`PROFILE_OFFSETS`] along the normal, less the canvas's colour at the point (so that the
-/// same edge reads the same in any colour).
+/// same edge reads the same in any colour). Both images are sampled bilinearly between pixel
+/// centres, clamped at the edges.
+///
+/// # Panics
+/// If the images differ in size.
 pub fn profile(target: &Rgb32FImage, canvas: &Rgb32FImage, frame: &Frame) -> [f32; PROFILE_LEN] {
+    assert_eq!(target.dimensions(), canvas.dimensions(), "target and canvas sizes");
     let ([px, py], [nx, ny]) = (frame.at, frame.normal);
-    let centre = bilinear(canvas, px, py);
+    let (target, canvas, width) = (target.as_raw(), canvas.as_raw(), target.width());
+    let size = (width, target.len() as u32 / 3 / width.max(1));
+    let centre = Bilinear::at(px, py, size).read(canvas);
     let mut values = [0.0; PROFILE_LEN];
     for (k, s) in PROFILE_OFFSETS.iter().enumerate() {
-        let (x, y) = (px + s * nx, py + s * ny);
-        let (t, c) = (bilinear(target, x, y), bilinear(canvas, x, y));
+        let at = Bilinear::at(px + s * nx, py + s * ny, size);
+        let (t, c) = (at.read(target), at.read(canvas));
         for ch in 0..3 {
             values[6 * k + ch] = t[ch] - centre[ch];
             values[6 * k + 3 + ch] = c[ch] - centre[ch];
@@ -127,18 +134,34 @@ pub fn profile(target: &Rgb32FImage, canvas: &Rgb32FImage, frame: &Frame) -> [f3
     values
 }
 
-/// `image` at pixel position (x, y), bilinear between pixel centres, clamped at the edges.
-fn bilinear(image: &Rgb32FImage, x: f32, y: f32) -> [f32; 3] {
-    let (w, h) = image.dimensions();
-    let (u, v) = ((x - 0.5).clamp(0.0, w as f32 - 1.0), (y - 0.5).clamp(0.0, h as f32 - 1.0));
-    let (x0, y0) = (u.floor() as u32, v.floor() as u32);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let (fx, fy) = (u - x0 as f32, v - y0 as f32);
-    let p = |x, y| image.get_pixel(x, y).0;
-    let (a, b, c, d) = (p(x0, y0), p(x1, y0), p(x0, y1), p(x1, y1));
-    std::array::from_fn(|k| {
-        (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
-    })
+/// Where a bilinear sample of an image at pixel position (x, y) reads: its four pixels (as
+/// offsets into interleaved RGB) and how far between them, found once for images of one size.
+struct Bilinear {
+    corners: [usize; 4],
+    fx: f32,
+    fy: f32,
+}
+
+impl Bilinear {
+    /// The sample at (x, y) of a `width × height` image, between pixel centres, clamped at
+    /// the edges.
+    fn at(x: f32, y: f32, (width, height): (u32, u32)) -> Self {
+        let (u, v) = ((x - 0.5).clamp(0.0, width as f32 - 1.0), (y - 0.5).clamp(0.0, height as f32 - 1.0));
+        let (x0, y0) = (u.floor() as usize, v.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(width as usize - 1), (y0 + 1).min(height as usize - 1));
+        let (fx, fy) = (u - x0 as f32, v - y0 as f32);
+        let at = |x: usize, y: usize| 3 * (y * width as usize + x);
+        Self { corners: [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)], fx, fy }
+    }
+
+    /// The sample of `rgb` (interleaved, the size it was found for).
+    fn read(&self, rgb: &[f32]) -> [f32; 3] {
+        let ([a, b, c, d], (fx, fy)) = (self.corners, (self.fx, self.fy));
+        std::array::from_fn(|k| {
+            (rgb[a + k] * (1.0 - fx) + rgb[b + k] * fx) * (1.0 - fy)
+                + (rgb[c + k] * (1.0 - fx) + rgb[d + k] * fx) * fy
+        })
+    }
 }
 
 #[cfg(test)]
