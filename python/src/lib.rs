@@ -16,7 +16,7 @@ use burn::tensor::Device;
 use common::decode::{self, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
 use common::outputs::{OutputError, check_output};
 use common::write::write_atomic;
-use infer::{AutoRule, Fills, FinetuneOptions, Job, Limit, Models, PathBudget};
+use infer::{AutoRule, Fills, FinetuneOptions, Job, Limit, Models, Moves, PathBudget};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -41,6 +41,8 @@ struct Request {
     size: u32,
     /// What the regions are filled with (`None`: the job's default).
     fills: Option<Fills>,
+    /// Where the mover moves B's outlines (`None`: the job's default).
+    moves: Option<Moves>,
     /// Where to write the SVG too.
     out: Option<PathBuf>,
 }
@@ -50,7 +52,7 @@ impl Request {
         paths: Option<usize>,
         finetune_secs: Option<f64>,
         size: u32,
-        fills: Option<&str>,
+        (fills, moves): (Option<&str>, Option<&str>),
         out: Option<PathBuf>,
         input: Option<&Path>,
     ) -> PyResult<Self> {
@@ -58,6 +60,10 @@ impl Request {
             .map(str::parse::<Fills>)
             .transpose()
             .map_err(|err| PyValueError::new_err(format!("fills: {err}")))?;
+        let moves = moves
+            .map(str::parse::<Moves>)
+            .transpose()
+            .map_err(|err| PyValueError::new_err(format!("moves: {err}")))?;
         if let Some(out) = &out {
             check_out(out, input)?;
         }
@@ -72,7 +78,7 @@ impl Request {
                 "finetune_secs {seconds} is not a positive number of seconds"
             )));
         }
-        Ok(Self { paths, finetune_secs, size, fills, out })
+        Ok(Self { paths, finetune_secs, size, fills, moves, out })
     }
 
     fn load_options(&self) -> LoadOptions {
@@ -87,6 +93,7 @@ impl Request {
                 ..FinetuneOptions::default()
             }),
             fills: self.fills,
+            moves: self.moves.unwrap_or_default(),
             ..Job::default()
         }
     }
@@ -165,7 +172,7 @@ type Paths = Option<usize>;
 
 /// Vectorizes the image file at `path`. Returns `(svg, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (path, paths, finetune_secs, size, fills, out))]
+#[pyo3(signature = (path, paths, finetune_secs, size, fills, moves, out))]
 fn from_file(
     py: Python<'_>,
     path: PathBuf,
@@ -173,15 +180,16 @@ fn from_file(
     finetune_secs: Option<f64>,
     size: u32,
     fills: Option<&str>,
+    moves: Option<&str>,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
-    Request::new(paths, finetune_secs, size, fills, out, Some(&path))?
+    Request::new(paths, finetune_secs, size, (fills, moves), out, Some(&path))?
         .run(py, |options| decode::open(&path, options))
 }
 
 /// Vectorizes an image file's bytes (any format the files may have). Returns `(svg, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (data, paths, finetune_secs, size, fills, out))]
+#[pyo3(signature = (data, paths, finetune_secs, size, fills, moves, out))]
 fn from_bytes(
     py: Python<'_>,
     data: &[u8],
@@ -189,16 +197,17 @@ fn from_bytes(
     finetune_secs: Option<f64>,
     size: u32,
     fills: Option<&str>,
+    moves: Option<&str>,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
-    Request::new(paths, finetune_secs, size, fills, out, None)?
+    Request::new(paths, finetune_secs, size, (fills, moves), out, None)?
         .run(py, |options| decode::decode(data, "<bytes>", options))
 }
 
 /// Vectorizes `height` rows of `width` pixels of `channels` (1, 3 or 4) bytes each, in C order.
 /// Returns `(svg, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (data, width, height, channels, paths, finetune_secs, size, fills, out))]
+#[pyo3(signature = (data, width, height, channels, paths, finetune_secs, size, fills, moves, out))]
 #[allow(clippy::too_many_arguments)] // one per keyword of `supersvg.vectorize`
 fn from_pixels(
     py: Python<'_>,
@@ -210,11 +219,12 @@ fn from_pixels(
     finetune_secs: Option<f64>,
     size: u32,
     fills: Option<&str>,
+    moves: Option<&str>,
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     let layout = PixelLayout::from_channels(channels)
         .ok_or_else(|| PyValueError::new_err(format!("{channels} channels: an array needs 1, 3 or 4")))?;
-    Request::new(paths, finetune_secs, size, fills, out, None)?
+    Request::new(paths, finetune_secs, size, (fills, moves), out, None)?
         .run(py, |options| decode::from_pixels(data, (width, height), layout, "<array>", options))
 }
 

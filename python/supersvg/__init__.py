@@ -19,7 +19,7 @@ __all__ = ["vectorize", "MAX_PATHS"]
 MAX_PATHS = _native.MAX_PATHS
 
 
-def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, out=None):
+def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, moves=None, out=None):
     """Draws ``image`` as an SVG and returns its text.
 
     ``image`` is a path (``str`` or ``os.PathLike``) of a png, jpeg, webp, gif, bmp or tiff file,
@@ -32,7 +32,9 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, out
     input's size). ``fills`` is what the regions are filled with: ``"flat"`` (each its mean
     colour), ``"linear"`` (a colour ramp where one fits) or ``"auto"`` (a ramp where it draws
     better than its bytes would as regions); ``None`` (the default) is ``"auto"``, but ``"flat"``
-    with ``finetune_secs`` and for flat art (icons, emoji). ``out`` also writes the SVG to that file (whole or not at all): a ``.svg`` file,
+    with ``finetune_secs`` and for flat art (icons, emoji). ``moves`` says where the mover moves
+    the drawn outlines onto the image's edges: ``"auto"`` (the default, ``None``: where the regions
+    get ramps, photos), ``"on"`` or ``"off"``. ``out`` also writes the SVG to that file (whole or not at all): a ``.svg`` file,
     never the input, checked before any work.
 
     Raises ``ValueError`` for an image that cannot be read, an argument out of range or an ``out``
@@ -55,7 +57,9 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, out
         out = os.fsdecode(os.fspath(out))
     if fills is not None and not isinstance(fills, str):
         raise ValueError(f"fills={fills!r}: give 'flat', 'linear' or 'auto'")
-    options = (budget, finetune_secs, size, fills, out)
+    if moves is not None and not isinstance(moves, str):
+        raise ValueError(f"moves={moves!r}: give 'auto', 'on' or 'off'")
+    options = (budget, finetune_secs, size, fills, moves, out)
     if isinstance(image, (str, os.PathLike)):
         svg, said = _native.from_file(os.fsdecode(os.fspath(image)), *options)
     elif isinstance(image, (bytes, bytearray, memoryview)):

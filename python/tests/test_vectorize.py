@@ -181,3 +181,18 @@ def test_ctrl_c_stops_a_long_fine_tuning():
     with pytest.raises(KeyboardInterrupt):
         supersvg.vectorize(EXAMPLE, paths=50, size=128, finetune_secs=60)
     assert time.monotonic() - started < 20
+
+
+def test_moves_choose_where_the_mover_runs():
+    moved = supersvg.vectorize(EXAMPLE, paths=100, size=128)
+    assert moved == supersvg.vectorize(EXAMPLE, paths=100, size=128, moves="auto")
+    drawn = supersvg.vectorize(EXAMPLE, paths=100, size=128, moves="off")
+    assert moved != drawn  # the example is a photo: the mover moves its outlines
+    # By default flat fills are left as drawn; "on" moves them too.
+    flat = supersvg.vectorize(EXAMPLE, paths=100, size=128, fills="flat")
+    assert flat == supersvg.vectorize(EXAMPLE, paths=100, size=128, fills="flat", moves="off")
+    assert flat != supersvg.vectorize(EXAMPLE, paths=100, size=128, fills="flat", moves="on")
+    with pytest.raises(ValueError, match="moves"):
+        supersvg.vectorize(EXAMPLE, moves="sometimes")
+    with pytest.raises(ValueError, match="moves"):
+        supersvg.vectorize(EXAMPLE, moves=False)
