@@ -1,6 +1,7 @@
 //! SuperSVG inference: an image to SVG in one call ([`run`]) — superpixels, the coarse network
-//! E_c and the refinement network E_r as stages over one [`Scene`] (SuperSVG-B), then, if
-//! asked, every path fine-tuned against the image (SuperSVG-F).
+//! E_c and the refinement network E_r as stages over one [`Scene`] (SuperSVG-B), the mover E_m
+//! moving what they drew where the job says ([`Moves`]), then, if asked, every path fine-tuned
+//! against the image (SuperSVG-F).
 //!
 //! ```no_run
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {

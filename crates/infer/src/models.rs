@@ -248,7 +248,8 @@ pub struct Models {
 }
 
 impl Models {
-    /// E_c from `coarse` and, if given, E_r from `refine` (both must share a configuration).
+    /// E_c from `coarse` and, if given, E_r from `refine` (both must share a configuration);
+    /// no mover ([`Models::with_mover`] adds one).
     pub fn load(coarse: &Path, refine: Option<&Path>, device: &Device) -> Result<Self, CheckpointError> {
         let refine = refine.map(|path| ModelSource::File(path.to_path_buf()));
         Self::from_sources(&ModelSource::File(coarse.to_path_buf()), refine.as_ref(), device)

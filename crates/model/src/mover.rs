@@ -52,7 +52,11 @@ impl Mover {
 
     /// The moves of `profiles` (row-major, [`PROFILE_LEN`] values a point) in pixels, each
     /// within [`MAX_MOVE`]: what inference applies.
+    ///
+    /// # Panics
+    /// If `profiles` is not a whole number of profiles.
     pub fn moves(&self, profiles: Vec<f32>, device: &Device) -> Vec<f32> {
+        assert!(profiles.len().is_multiple_of(PROFILE_LEN), "whole profiles, {PROFILE_LEN} values each");
         let rows = profiles.len() / PROFILE_LEN;
         if rows == 0 {
             return Vec::new();
