@@ -43,11 +43,7 @@ pub fn move_outlines(mover: &Mover, scene: &mut Scene, original: (u32, u32), dev
     let size = target.dimensions();
     let canvas = scene.canvas_image();
     let outlines: Vec<Option<Outline>> = (scene.paths().iter())
-        .map(|placed| match (placed.origin, &placed.shape) {
-            (Origin::Background, _) => None,
-            (_, Shape::Outline(outline)) => Some((**outline).clone()),
-            (_, Shape::Path(path)) => Outline::from_path(path, path.color),
-        })
+        .map(|placed| (placed.origin != Origin::Background).then(|| placed.shape.to_outline()).flatten())
         .collect();
     let clock = Instant::now();
     let frames: Vec<Vec<Frame>> = outlines
@@ -81,13 +77,14 @@ pub fn move_outlines(mover: &Mover, scene: &mut Scene, original: (u32, u32), dev
             Shape::from(outline.with_points(&moved).simplified(SIMPLIFY_PIXELS, size))
         })
         .collect();
-    let before = (scene.total_error(), scene.scene());
+    // The drawing as B left it, canvas and all, to go back to without painting it again.
+    let (drawn, error) = (scene.clone(), scene.total_error());
     scene.set_shapes(&shapes);
     let after = scene.total_error();
-    if after < before.0 {
-        MoveTally { points, kept: true, gain_db: 10.0 * (before.0 / after).log10(), network_seconds }
+    if after < error {
+        MoveTally { points, kept: true, gain_db: 10.0 * (error / after).log10(), network_seconds }
     } else {
-        scene.set_shapes(&before.1);
+        *scene = drawn;
         MoveTally { points, kept: false, gain_db: 0.0, network_seconds }
     }
 }

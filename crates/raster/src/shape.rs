@@ -564,6 +564,15 @@ pub enum Shape {
 }
 
 impl Shape {
+    /// The shape as an outline (a path's four cubics as one contour, in its colour): what
+    /// moves an outline's points takes. `None` for a path with a number that is not finite.
+    pub fn to_outline(&self) -> Option<Outline> {
+        match self {
+            Shape::Path(path) => Outline::from_path(path, path.color),
+            Shape::Outline(outline) => Some((**outline).clone()),
+        }
+    }
+
     fn filled(&self) -> &dyn Filled {
         match self {
             Shape::Path(path) => path,

@@ -23,7 +23,7 @@ use model::{MAX_MOVE, Mover, MoverCheckpoint, PROFILE_LEN, frames, profile};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use raster::{Fill, FlatAdam, Outline, Shape, Window};
+use raster::{Fill, FlatAdam, Outline, Window};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -186,12 +186,8 @@ pub fn teach(scene: &Scene, teacher: &Teacher, rates: &FinetuneOptions) -> Vec<S
     let target = scene.target();
     let canvas = scene.canvas_image();
     let size = target.dimensions();
-    let outlines: Vec<Outline> = (scene.scene().iter())
-        .map(|shape| match shape {
-            Shape::Outline(outline) => (**outline).clone(),
-            Shape::Path(path) => Outline::from_path(path, path.color).expect("a drawn path is finite"),
-        })
-        .collect();
+    let outlines: Vec<Outline> =
+        (scene.scene().iter()).map(|shape| shape.to_outline().expect("a drawn path is finite")).collect();
     let room = Room::of(target, teacher.pad);
     let boxes: Vec<Option<PixelBox>> = outlines.iter().map(|o| room.pixel_box(o)).collect();
     (0..outlines.len())

@@ -143,12 +143,7 @@ fn kb(bytes: usize) -> f64 {
 
 /// B's shapes as outlines, as drawn.
 fn drawn_outlines(scene: &Scene) -> Vec<Outline> {
-    (scene.scene().iter())
-        .map(|shape| match shape {
-            Shape::Outline(outline) => (**outline).clone(),
-            Shape::Path(path) => Outline::from_path(path, path.color).expect("a drawn path"),
-        })
-        .collect()
+    scene.scene().iter().map(|shape| shape.to_outline().expect("a drawn path is finite")).collect()
 }
 
 /// The PSNR of `outlines` as the SVG writes them (points rounded to `decimals` of a pixel)
