@@ -32,7 +32,7 @@ pub enum Method {
     OursFMoved,
     /// SuperSVG-B with `--paths auto`.
     OursAuto,
-    /// SuperSVG-B without E_r.
+    /// SuperSVG-B without its refinement networks (E_r and the mover).
     OursNoRefine,
     /// SuperSVG-B without the mover.
     OursNoMoves,
@@ -65,7 +65,7 @@ impl Method {
             Method::OursF => "SuperSVG-F (ours)",
             Method::OursFMoved => "SuperSVG-F from B and the mover (--moves on)",
             Method::OursAuto => "SuperSVG-B (ours), --paths auto",
-            Method::OursNoRefine => "SuperSVG-B without E_r (--no-refine)",
+            Method::OursNoRefine => "SuperSVG-B without E_r and the mover (--no-refine)",
             Method::OursNoMoves => "SuperSVG-B without the mover (--moves off)",
             Method::OursPaper => "SuperSVG-B, the paper's inference (--operating-point paper)",
             Method::OursOptimizer => "SuperSVG-B, the exact optimizer in E_r's place (--refiner optimizer)",

@@ -113,14 +113,17 @@ fn report_has_svg_sizes_and_the_auto_budget() {
     };
     assert!(row("SuperSVG-B (ours)").parse::<f64>().unwrap() > 0.0, "{report}");
     assert!(row("SuperSVG-B (ours), --paths auto").parse::<f64>().unwrap() > 0.0, "{report}");
-    assert!(row("SuperSVG-B without E_r (--no-refine)").parse::<f64>().unwrap() > 0.0, "{report}");
+    assert!(
+        row("SuperSVG-B without E_r and the mover (--no-refine)").parse::<f64>().unwrap() > 0.0,
+        "{report}"
+    );
     let paper = "SuperSVG-B, the paper's inference (--operating-point paper)";
     assert!(row(paper).parse::<f64>().unwrap() > 0.0, "{report}");
     // The optimizer's paths are kept only where they lower the error: never below the drawing
     // without E_r (up to resvg's rendering of the same paths).
     let optimizer: f64 =
         row("SuperSVG-B, the exact optimizer in E_r's place (--refiner optimizer)").parse().unwrap();
-    let no_refine: f64 = row("SuperSVG-B without E_r (--no-refine)").parse().unwrap();
+    let no_refine: f64 = row("SuperSVG-B without E_r and the mover (--no-refine)").parse().unwrap();
     assert!(optimizer >= no_refine - 0.05, "{optimizer} against {no_refine}: {report}");
     assert_eq!(row("SLIC regions, mean colour"), "—", "{report}");
     std::fs::remove_dir_all(&dir).unwrap();

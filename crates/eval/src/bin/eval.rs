@@ -39,7 +39,8 @@ enum Peer {
     /// SuperSVG's fallback drawing alone: as `infer --paths N --regions N-1 --no-refine --moves
     /// off` draws it.
     Fallback,
-    /// SuperSVG-B without E_r: as `infer --paths N --no-refine` draws it (what E_r adds).
+    /// SuperSVG-B without its refinement networks, E_r and the mover: as `infer --paths N
+    /// --no-refine` draws it (what they add).
     NoRefine,
     /// SuperSVG-B without the mover: as `infer --paths N --moves off` draws it (what the mover
     /// adds; swept, so the chart compares them at equal file size).
@@ -220,7 +221,8 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     let device = args.backend.device()?;
     let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), args.mover.as_deref(), &device)?;
     // The fallback and no-refine rows draw without E_r (for the fallback: a region that lowers
-    // nothing is not drawn, and E_r would spend what it leaves), as `infer --no-refine` does.
+    // nothing is not drawn, and E_r would spend what it leaves) and unmoved, as `infer
+    // --no-refine` does.
     let regions_only = infer::Models { refine: None, ..models.clone() };
     // The peers read the input's format from its extension: the scratch folder is made new,
     // so the fixed names inside it are safe.
@@ -261,7 +263,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         }
     }
     if args.wants(Peer::NoRefine) {
-        methods.push(Box::new(ours(Method::OursNoRefine, &regions_only, job.clone())));
+        methods.push(Box::new(ours(Method::OursNoRefine, &regions_only, unmoved.clone())));
     }
     if args.wants(Peer::NoMoves) {
         methods.push(Box::new(ours(Method::OursNoMoves, &models, unmoved.clone())));

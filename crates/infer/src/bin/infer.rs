@@ -53,8 +53,9 @@ struct Args {
     /// $SUPERSVG_MODELS).
     #[arg(long)]
     refine: Option<PathBuf>,
-    /// Coarse paths only, no refinement.
-    #[arg(long, conflicts_with = "refine")]
+    /// No refinement networks: neither E_r's paths nor the mover's moves (what B draws without
+    /// them: the regions and E_c).
+    #[arg(long, conflicts_with_all = ["refine", "mover"])]
     no_refine: bool,
     /// Who proposes the refinement stage's paths: `network` (E_r), or `optimizer[:STEPS]`, the
     /// exact optimizer in E_r's place (300 Adam steps a region's crop by default; E_r is not
@@ -64,8 +65,8 @@ struct Args {
     refiner: Refiner,
     /// Where the mover E_m moves what SuperSVG-B drew onto the image's edges: `auto` (where B
     /// fills regions with ramps: photos, not flat art, and not with --fills flat or SuperSVG-F),
-    /// `on` or `off`.
-    #[arg(long, default_value = "auto", value_parser = str::parse::<Moves>)]
+    /// `on` or `off` (as with --no-refine).
+    #[arg(long, default_value = "auto", value_parser = str::parse::<Moves>, conflicts_with = "no_refine")]
     moves: Moves,
     /// The mover's checkpoint (default: the bundled one, or mover.ckpt in $SUPERSVG_MODELS).
     #[arg(long)]
@@ -144,7 +145,7 @@ impl Args {
             fills: self.fills,
             operating_point: self.operating_point,
             refiner: self.refiner,
-            moves: self.moves,
+            moves: if self.no_refine { Moves::Off } else { self.moves },
             ssim: self.metrics.is_some(),
             ..Job::default()
         };
@@ -230,7 +231,7 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
         (None, false) => Some(bundled(&BUILT_IN_REFINE)?),
     };
     let mut models = Models::from_sources(&coarse, refine.as_ref(), &device)?;
-    if args.moves != Moves::Off {
+    if job.moves != Moves::Off {
         let mover = match &args.mover {
             Some(path) => ModelSource::File(path.clone()),
             None => bundled(&BUILT_IN_MOVER)?,
@@ -258,7 +259,8 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
     if let Some(which) = keeps_none.filter(|_| args.refine.is_some() || args.no_refine) {
         eprintln!(
             "warning: the operating point {which} keeps no share of the budget for E_r: it only \
-             fills what the coarse stage leaves unused, so --refine and --no-refine change little"
+             fills what the coarse stage leaves unused, so --refine changes little, and \
+             --no-refine little but the mover's moves"
         );
     }
     let bar = Bar::new("", jobs.len() as u64, "images", jobs.len() > 1 && !args.quiet);
