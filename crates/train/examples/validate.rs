@@ -9,25 +9,28 @@
 //! fallback alone at the same budget); a refinement checkpoint (with a refine config such as `configs/refine.toml`) the way
 //! inference uses it, on the images' fallback drawings with `validation.refine_share` of the
 //! paths (`proposed`, `kept`, `gain_db`, `regions_db`: what the same paths add as regions, and
-//! `optimizer_db`: what the exact optimizer's paths add in E_r's place).
+//! `optimizer_db`: what the exact optimizer's paths add in E_r's place). A mover's file (with
+//! `configs/mover.toml`) is scored as inference runs it, on `[validation]`'s images drawn by B
+//! at each of `data.paths`: `at_inference`, a budget each (`paths`, `gain_db`: the mean PSNR gain
+//! over B, a rejected move counting 0, `kept` of `images`).
 
 use std::path::PathBuf;
 
 use clap::Parser;
-use model::{Checkpoint, CropBatch, Stage, load_coarse, load_refine};
-use train::Validation;
+use model::{Checkpoint, CheckpointError, CropBatch, MoverCheckpoint, Stage, load_coarse, load_refine};
 use train::config::{self, CoarseConfig, RefineConfig};
 use train::{CoarseCheck, RefineCheck};
 use train::{CoarseObjective, Objective};
+use train::{MoverCheck, MoverConfig, Validation};
 
 /// Score checkpoints on the validation set of a config.
 #[derive(Parser, Debug)]
 struct Args {
     /// The TOML config whose [validation] (and, for E_c, [loss]) to use: a coarse config for
-    /// coarse checkpoints, a refine config for refinement ones.
+    /// coarse checkpoints, a refine config for refinement ones, a mover config for movers.
     #[arg(long)]
     config: PathBuf,
-    /// Checkpoints, all of one stage.
+    /// Checkpoints, all of one kind.
     #[arg(required = true)]
     checkpoints: Vec<PathBuf>,
 }
@@ -35,6 +38,11 @@ struct Args {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let device = burn::tensor::Device::flex();
+    match MoverCheckpoint::load(&args.checkpoints[0]) {
+        Ok(_) => return validate_movers(&args, &device),
+        Err(CheckpointError::WrongStage { .. }) => {}
+        Err(err) => return Err(err.into()),
+    }
     let stage = Checkpoint::load(&args.checkpoints[0])?.stage;
     match stage {
         Stage::Coarse => {
@@ -67,6 +75,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 print(path, serde_json::to_value(check.score(&model, &device))?);
             }
         }
+    }
+    Ok(())
+}
+
+/// Scores mover checkpoints on the mover config's `[validation]` images.
+fn validate_movers(args: &Args, device: &burn::tensor::Device) -> Result<(), Box<dyn std::error::Error>> {
+    let config = MoverConfig::load(&args.config)?;
+    let validation = config.validation.as_ref().ok_or("the config has no [validation] images")?;
+    let check = MoverCheck::build(&validation.images, &config.data, device)?;
+    for path in &args.checkpoints {
+        let mover = MoverCheckpoint::load(path)?.build(device, path)?;
+        print(path, serde_json::json!({ "at_inference": check.score(&mover, device) }));
     }
     Ok(())
 }

@@ -25,8 +25,8 @@ pub use data::{
 };
 pub use inference::{AtInference, CoarseCheck, CoarseScores, RefineCheck, RefineScores};
 pub use mover::{
-    Begin, MoverConfig, MoverData, MoverError, MoverState, MoverSummary, MoverTraining, Room, Sample,
-    Teacher, mover_checkpoint, teach, train_mover,
+    Begin, MoverCheck, MoverConfig, MoverData, MoverError, MoverScore, MoverState, MoverSummary,
+    MoverTraining, MoverValidation, Room, Sample, Teacher, mover_checkpoint, teach, train_mover,
 };
 pub use objective::{CoarseObjective, Objective, RefineObjective, StepOutput};
 pub use optimizer::adamw;

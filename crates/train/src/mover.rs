@@ -18,6 +18,7 @@ use common::PixelBox;
 use common::decode::load;
 use common::write::write_atomic;
 use image::Rgb32FImage;
+use infer::stages::move_outlines;
 use infer::{FinetuneOptions, Job, Models, Moves, Origin, PathBudget, Scene, run};
 use model::{MAX_MOVE, Mover, MoverCheckpoint, PROFILE_LEN, frames, profile};
 use rand::SeedableRng;
@@ -39,6 +40,18 @@ pub struct MoverConfig {
     pub teacher: Teacher,
     /// The regression.
     pub train: MoverTraining,
+    /// Held-out images each epoch's mover is scored on as inference runs it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation: Option<MoverValidation>,
+}
+
+/// Images the mover is scored on as inference runs it ([`MoverCheck`]): SuperSVG-B's drawings
+/// of each at `data.paths`, moved, the move kept where it lowers the error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoverValidation {
+    /// Image files, relative to the working folder; none of `data.images`.
+    pub images: Vec<PathBuf>,
 }
 
 /// The drawings the teacher moves: SuperSVG-B's (defaults, the mover off) of each image at
@@ -154,6 +167,14 @@ impl MoverConfig {
             (config.train.epochs == 0, "train.epochs: at least 1"),
             (!(config.train.learning_rate > 0.0), "train.learning_rate: above 0"),
             (!(0.0..0.5).contains(&config.train.held_out), "train.held_out: from 0 to below 0.5"),
+            (config.validation.as_ref().is_some_and(|v| v.images.is_empty()), "validation.images is empty"),
+            (
+                config.validation.as_ref().is_some_and(|v| {
+                    let name = |path: &PathBuf| path.file_name().map(|n| n.to_os_string());
+                    v.images.iter().any(|held| config.data.images.iter().any(|seen| name(held) == name(seen)))
+                }),
+                "validation.images: an image of data.images (held-out images must be others)",
+            ),
         ];
         match checks.iter().find(|(bad, _)| *bad) {
             Some((_, what)) => Err(problem(what.to_string())),
@@ -173,6 +194,10 @@ pub struct MoverState {
     pub held_out: Vec<f64>,
     /// The held-out squared error of moving nothing, px².
     pub still: f64,
+    /// Each finished epoch's scores on `[validation]`'s images as inference runs the mover,
+    /// one a budget (none without `[validation]`).
+    #[serde(default)]
+    pub at_inference: Vec<Vec<MoverScore>>,
     /// The configuration, as run.
     pub config: MoverConfig,
 }
@@ -342,12 +367,7 @@ fn samples(config: &MoverConfig, dir: &Path, device: &Device) -> Result<Vec<Samp
     let folder = dir.join("samples");
     std::fs::create_dir_all(&folder).map_err(|source| MoverError::Io { path: folder.clone(), source })?;
     // B as `infer` draws it, without a mover (the one trained here moves what this draws).
-    let bundled = |built_in| {
-        infer::bundled(built_in)
-            .map_err(|e| MoverError::Config { path: PathBuf::from(built_in.name), problem: e.to_string() })
-    };
-    let (coarse, refine) = (bundled(&infer::BUILT_IN_COARSE)?, bundled(&infer::BUILT_IN_REFINE)?);
-    let models = Models::from_sources(&coarse, Some(&refine), device)?;
+    let models = without_mover(device)?;
     let rates = FinetuneOptions::default();
     let mut all = Vec::new();
     for (index, image) in config.data.images.iter().enumerate() {
@@ -361,12 +381,9 @@ fn samples(config: &MoverConfig, dir: &Path, device: &Device) -> Result<Vec<Samp
                 all.extend(read_samples(&file)?);
                 continue;
             }
-            let failed = |problem: String| MoverError::Image { path: image.clone(), problem };
             let started = Instant::now();
-            let loaded = load(image, config.data.size).map_err(|e| failed(e.to_string()))?;
-            let job = Job { paths: PathBudget::Count(paths), moves: Moves::Off, ..Job::default() };
-            let drawn = run(&models, &loaded, &job, device).map_err(|e| failed(e.to_string()))?;
-            let made = teach(&drawn.scene, &config.teacher, &rates);
+            let (drawn, _) = draw_b(&models, image, paths, config.data.size, device)?;
+            let made = teach(&drawn, &config.teacher, &rates);
             let bytes: Vec<u8> = made.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
             write_atomic(&file, &bytes).map_err(|source| MoverError::Io { path: file.clone(), source })?;
             eprintln!(
@@ -379,6 +396,90 @@ fn samples(config: &MoverConfig, dir: &Path, device: &Device) -> Result<Vec<Samp
         }
     }
     Ok(all)
+}
+
+/// SuperSVG-B's models without the mover: the bundled E_c and E_r.
+fn without_mover(device: &Device) -> Result<Models, MoverError> {
+    let bundled = |built_in| {
+        infer::bundled(built_in)
+            .map_err(|e| MoverError::Config { path: PathBuf::from(built_in.name), problem: e.to_string() })
+    };
+    let (coarse, refine) = (bundled(&infer::BUILT_IN_COARSE)?, bundled(&infer::BUILT_IN_REFINE)?);
+    Ok(Models::from_sources(&coarse, Some(&refine), device)?)
+}
+
+/// SuperSVG-B's drawing of `image` at `paths` paths and working size `size` (defaults, the
+/// mover off), and the image's own size, which the SVG keeps.
+fn draw_b(
+    models: &Models,
+    image: &Path,
+    paths: usize,
+    size: u32,
+    device: &Device,
+) -> Result<(Scene, (u32, u32)), MoverError> {
+    let failed = |problem: String| MoverError::Image { path: image.to_path_buf(), problem };
+    let loaded = load(image, size).map_err(|e| failed(e.to_string()))?;
+    let job = Job { paths: PathBudget::Count(paths), moves: Moves::Off, ..Job::default() };
+    let drawn = run(models, &loaded, &job, device).map_err(|e| failed(e.to_string()))?;
+    Ok((drawn.scene, loaded.original))
+}
+
+/// SuperSVG-B's drawings of `[validation]`'s images at each budget, which a mover is scored on
+/// the way inference runs it ([`infer::stages::move_outlines`]): so runs are compared on what
+/// users get, not on the teacher's error alone.
+pub struct MoverCheck {
+    cases: Vec<(usize, Scene, (u32, u32))>,
+}
+
+/// A mover's score at one budget of a [`MoverCheck`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MoverScore {
+    /// The budget, in paths.
+    pub paths: usize,
+    /// The mean PSNR gain (dB) of the kept moves over SuperSVG-B's drawings, a rejected move
+    /// counting 0: what inference gains.
+    pub gain_db: f64,
+    /// Drawings whose move was kept, of `images`.
+    pub kept: usize,
+    /// Drawings scored.
+    pub images: usize,
+}
+
+impl MoverCheck {
+    /// Draws each of `images` at each of `data.paths` paths, at `data.size`, on `device`.
+    pub fn build(images: &[PathBuf], data: &MoverData, device: &Device) -> Result<Self, MoverError> {
+        let models = without_mover(device)?;
+        let mut cases = Vec::with_capacity(images.len() * data.paths.len());
+        for image in images {
+            for &paths in &data.paths {
+                let (scene, original) = draw_b(&models, image, paths, data.size, device)?;
+                cases.push((paths, scene, original));
+            }
+        }
+        Ok(Self { cases })
+    }
+
+    /// `mover`'s scores (run on `device`), one per budget in the configuration's order.
+    pub fn score(&self, mover: &Mover, device: &Device) -> Vec<MoverScore> {
+        let mut scores: Vec<MoverScore> = Vec::new();
+        for (paths, scene, original) in &self.cases {
+            let tally = move_outlines(mover, &mut scene.clone(), *original, device);
+            let score = match scores.iter_mut().find(|score| score.paths == *paths) {
+                Some(score) => score,
+                None => {
+                    scores.push(MoverScore { paths: *paths, gain_db: 0.0, kept: 0, images: 0 });
+                    scores.last_mut().expect("just pushed")
+                }
+            };
+            score.gain_db += tally.gain_db;
+            score.kept += usize::from(tally.kept);
+            score.images += 1;
+        }
+        for score in &mut scores {
+            score.gain_db /= score.images as f64;
+        }
+        scores
+    }
 }
 
 /// The samples [`samples`] stored in `file`.
@@ -435,7 +536,12 @@ pub fn train_mover(
         Begin::Resume => Some(MoverCheckpoint::load(&checkpoint)?),
         _ => None,
     };
-    let mut samples = samples(config, dir, &device.clone().inner())?;
+    let inner = device.clone().inner();
+    let mut samples = samples(config, dir, &inner)?;
+    let check = match &config.validation {
+        Some(validation) => Some(MoverCheck::build(&validation.images, &config.data, &inner)?),
+        None => None,
+    };
     let mut rng = ChaCha8Rng::seed_from_u64(config.train.seed);
     samples.shuffle(&mut rng);
     let held = ((samples.len() as f64 * config.train.held_out) as usize).min(samples.len());
@@ -457,7 +563,14 @@ pub fn train_mover(
             let still = mean_square(held, std::iter::repeat(0.0));
             (
                 Mover::new(device),
-                MoverState { step: 0, seconds: 0.0, held_out: Vec::new(), still, config: config.clone() },
+                MoverState {
+                    step: 0,
+                    seconds: 0.0,
+                    held_out: Vec::new(),
+                    still,
+                    at_inference: Vec::new(),
+                    config: config.clone(),
+                },
             )
         }
     };
@@ -494,7 +607,6 @@ pub fn train_mover(
         }
         state.seconds += started.elapsed().as_secs_f64();
         let scored = mover.valid();
-        let inner = device.clone().inner();
         let error = mean_square_of(&scored, held, &inner);
         state.held_out.push(error);
         eprintln!(
@@ -503,6 +615,16 @@ pub fn train_mover(
             state.still,
             state.seconds
         );
+        if let Some(check) = &check {
+            let scores = check.score(&scored, &inner);
+            for score in &scores {
+                eprintln!(
+                    "  at inference, {} paths: {:+.3} dB, kept on {} of {} images",
+                    score.paths, score.gain_db, score.kept, score.images
+                );
+            }
+            state.at_inference.push(scores);
+        }
         save(&mover, &optimizer, &state)?;
     }
     Ok(MoverSummary { state, checkpoint })
@@ -544,6 +666,30 @@ mod tests {
     use superpixel::Segmentation;
 
     use super::*;
+
+    /// The check scores a mover as inference runs it: on the bundled example at a small size,
+    /// the bundled mover's score is the gain `infer --moves on` reports for the same drawing.
+    #[test]
+    fn the_check_scores_a_mover_as_inference_runs_it() {
+        let device = Device::flex();
+        let image = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../assets/astronaut.jpg");
+        let data = MoverData { images: vec![], paths: vec![60, 120], size: 96 };
+        let check = MoverCheck::build(std::slice::from_ref(&image), &data, &device).unwrap();
+        let mover = MoverCheckpoint::from_bytes(infer::BUILT_IN_MOVER.bytes, Path::new("mover.ckpt"))
+            .unwrap()
+            .build(&device, Path::new("mover.ckpt"))
+            .unwrap();
+        let scores = check.score(&mover, &device);
+        assert_eq!(scores.iter().map(|s| (s.paths, s.images)).collect::<Vec<_>>(), [(60, 1), (120, 1)]);
+        let models = Models::bundled(true, &device).unwrap();
+        let loaded = load(&image, data.size).unwrap();
+        for score in &scores {
+            let job = Job { paths: PathBudget::Count(score.paths), moves: Moves::On, ..Job::default() };
+            let moves = run(&models, &loaded, &job, &device).unwrap().report.moves.unwrap();
+            assert_eq!((score.gain_db, score.kept), (moves.gain_db, usize::from(moves.kept)), "{score:?}");
+        }
+        assert!(scores.iter().any(|s| s.kept == 1 && s.gain_db > 0.0), "{scores:?}");
+    }
 
     /// A dark square drawn 2 px inside the one in the image: the teacher moves every corner
     /// outward, toward the image's edge, and makes one sample a corner (the background is not

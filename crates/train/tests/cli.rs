@@ -200,26 +200,48 @@ fn the_mover_trains_resumes_exactly_and_exports() {
     };
     let err = fails(MOVER, &["--config", &config(1, "speed = 2\n"), "--out", dir.to_str().unwrap()]);
     assert!(err.contains("mover-1.toml") && err.contains("speed"), "{err}");
+    let seen = format!("[validation]\nimages = [{image:?}]\n");
+    let err = fails(MOVER, &["--config", &config(1, &seen), "--out", dir.to_str().unwrap()]);
+    assert!(
+        err.contains("mover-1.toml") && err.contains("validation.images: an image of data.images"),
+        "{err}"
+    );
+    let held = dir.join("held-out.jpg");
+    std::fs::copy(&image, &held).unwrap();
+    let validation = format!("[validation]\nimages = [{held:?}]\n");
     let train = |config: &str, out: &Path, extra: &[&str]| {
         let output = Command::new(MOVER)
             .args(["--config", config, "--out", out.to_str().unwrap()])
             .args(extra)
             .output();
         let output = output.unwrap();
-        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert!(output.status.success(), "{stderr}");
+        stderr
     };
     let (once, twice) = (dir.join("once"), dir.join("twice"));
-    train(&config(2, ""), &once, &[]);
+    let log = train(&config(2, &validation), &once, &[]);
+    assert_eq!(log.matches("at inference, 24 paths").count(), 2, "{log}");
     train(&config(1, ""), &twice, &[]);
     let err = fails(MOVER, &["--config", &config(2, ""), "--out", twice.to_str().unwrap()]);
     assert!(err.contains("mover.ckpt exists") && err.contains("--resume"), "{err}");
     train(&config(2, ""), &twice, &["--resume"]);
+    let file = |run: &Path| model::MoverCheckpoint::load(&run.join("mover.ckpt")).unwrap();
     let weights = |run: &Path| {
-        let file = model::MoverCheckpoint::load(&run.join("mover.ckpt")).unwrap();
+        let file = file(run);
         assert!(file.optimizer.is_some());
         file.weights_checksum()
     };
+    // Scoring each epoch at inference leaves the weights as they were.
     assert_eq!(weights(&once), weights(&twice));
+    let state =
+        |run: &Path| -> train::MoverState { serde_json::from_str(&file(run).training.unwrap()).unwrap() };
+    let scores = state(&once).at_inference;
+    assert_eq!(
+        scores.iter().map(|epoch| (epoch.len(), epoch[0].images)).collect::<Vec<_>>(),
+        [(1, 1), (1, 1)]
+    );
+    assert!(state(&twice).at_inference.is_empty());
     let shipped = dir.join("shipped.ckpt");
     let output = Command::new(EXPORT)
         .args([once.join("mover.ckpt").to_str().unwrap(), shipped.to_str().unwrap(), "--dtype", "f32"])
