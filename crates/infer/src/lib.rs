@@ -31,6 +31,7 @@ mod models;
 mod mover;
 pub mod paper;
 mod pipeline;
+mod recolour;
 mod refine;
 mod scene;
 mod segmentation;

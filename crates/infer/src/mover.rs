@@ -2,8 +2,10 @@
 //! its normal in one batched pass ([`model::Mover`]), the moved points rounded to a grid of
 //! about [`MOVE_GRID`] of a working pixel and each moved outline's straight runs simplified within
 //! [`SIMPLIFY_PIXELS`], so that the edges it finds do not cost more bytes than they draw. The
-//! background stays under everything, as drawn. The pass is kept only where the whole drawing
-//! is better for it.
+//! background stays under everything, as drawn. Then every fill is refitted by least squares
+//! to what its shape shows once moved (`recolour`): a region's mean colour is no longer the
+//! best colour of an outline that covers other pixels. The pass is kept only where the whole
+//! drawing is better for it.
 
 use burn::tensor::Device;
 use model::{Frame, Mover, PROFILE_LEN, frames, profile};
@@ -13,6 +15,7 @@ use web_time::Instant;
 
 use raster::{Outline, Shape};
 
+use crate::recolour::refitted;
 use crate::scene::{Origin, Scene};
 
 /// Moved points are rounded to the power of ten of output pixels nearest (in ratio) to this
@@ -36,8 +39,8 @@ pub struct MoveTally {
 }
 
 /// Moves every outline of `scene` but the background with `mover` on `device`, the SVG being
-/// written at `original` size: kept when the drawing's error falls, else `scene` stays as it
-/// was.
+/// written at `original` size, and refits every fill to the moved drawing: kept when the
+/// drawing's error falls, else `scene` stays as it was.
 pub fn move_outlines(mover: &Mover, scene: &mut Scene, original: (u32, u32), device: &Device) -> MoveTally {
     let target = scene.target().clone();
     let size = target.dimensions();
@@ -77,6 +80,7 @@ pub fn move_outlines(mover: &Mover, scene: &mut Scene, original: (u32, u32), dev
             Shape::from(outline.with_points(&moved).simplified(SIMPLIFY_PIXELS, size))
         })
         .collect();
+    let shapes = refitted(&target, &shapes);
     // The drawing as B left it, canvas and all, to go back to without painting it again.
     let (drawn, error) = (scene.clone(), scene.total_error());
     scene.set_shapes(&shapes);

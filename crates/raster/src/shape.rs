@@ -573,6 +573,19 @@ impl Shape {
         }
     }
 
+    /// The same shape filled with `fill` (a path given a ramp becomes its outline, which can
+    /// hold one); `None` for a path with a number that is not finite given a ramp.
+    pub fn with_fill(&self, fill: Fill) -> Option<Shape> {
+        match (self, fill) {
+            (Shape::Path(path), Fill::Solid(color)) => Some(Shape::Path(Path { color, ..*path })),
+            (Shape::Path(_), Fill::Linear(_)) | (Shape::Outline(_), _) => {
+                let mut outline = self.to_outline()?;
+                outline.fill = fill;
+                Some(outline.into())
+            }
+        }
+    }
+
     fn filled(&self) -> &dyn Filled {
         match self {
             Shape::Path(path) => path,
