@@ -1,10 +1,12 @@
 //! Every shape's fill refitted to the image over what it shows once drawn: least squares over
-//! its exact coverage times what the shapes above it leave visible, one sweep in paint order.
-//! A flat colour is refitted; a ramp is shifted (both stops by the same amount, its slope
-//! kept: fitting its two stops apart drew worse on some photos, see models/README.md). The colours B picks are its regions'
-//! means over their pixels; a traced or moved outline covers other pixels than its region's,
-//! and its neighbours cover some of it, so the colour that draws it best is another: the
-//! mover's stage refits the fills of what it moved. The refitted drawing writes the same bytes.
+//! its exact coverage times what the shapes above it leave visible, each shape against the
+//! drawing as it is (all at once: shapes that tile meet only along their edges). A flat colour
+//! is refitted; a ramp is shifted, both stops by the same amount, its slope kept (fitting its
+//! two stops apart drew worse on some photos: models/README.md). The colours B picks are its
+//! regions' means over their pixels; a traced or moved outline covers other pixels than its
+//! region's, and its neighbours cover some of it, so the colour that draws it best is another:
+//! the mover's stage refits the fills of what it moved. The refitted drawing writes the same
+//! bytes.
 
 use common::PixelBox;
 use image::Rgb32FImage;
