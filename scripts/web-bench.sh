@@ -12,13 +12,7 @@ cd "$(dirname "$0")/.."
 target="${CARGO_TARGET_DIR:-target}"
 scripts/web.sh --build-only
 cargo build --release -p infer
-stage="$(mktemp -d)"
-port="$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
-python3 -m http.server --bind 127.0.0.1 --directory crates/web/www "$port" >"$stage/server.log" 2>&1 &
-server=$!
-trap 'kill $server 2>/dev/null; rm -rf "$stage"' EXIT
-python3 -m venv "$stage/venv"
-"$stage/venv/bin/pip" install --quiet pytest selenium
+source scripts/serve-page.sh
 if [ $# -eq 0 ]; then set -- data/eval/photos/*; fi
 WEB_URL="http://127.0.0.1:$port/" INFER="$(realpath "$target/release/infer")" \
-  "$stage/venv/bin/python" crates/web/tests/bench_page.py "$@"
+  "$python" crates/web/tests/bench_page.py "$@"

@@ -11,12 +11,6 @@ cd "$(dirname "$0")/.."
 target="${CARGO_TARGET_DIR:-target}"
 scripts/web.sh --build-only
 cargo build --workspace --features wgpu
-stage="$(mktemp -d)"
-port="$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
-python3 -m http.server --bind 127.0.0.1 --directory crates/web/www "$port" >"$stage/server.log" 2>&1 &
-server=$!
-trap 'kill $server 2>/dev/null; rm -rf "$stage"' EXIT
-python3 -m venv "$stage/venv"
-"$stage/venv/bin/pip" install --quiet pytest selenium
+source scripts/serve-page.sh
 WEB_URL="http://127.0.0.1:$port/" INFER="$(realpath "$target/debug/infer")" \
-  "$stage/venv/bin/python" -m pytest -q -s -p no:cacheprovider crates/web/tests "$@"
+  "$python" -m pytest -q -s -p no:cacheprovider crates/web/tests "$@"
