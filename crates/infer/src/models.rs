@@ -23,7 +23,7 @@ pub enum ModelSource {
 }
 
 /// A bundled checkpoint compiled into the program (E_c's and E_r's f16 weights are about 4.5 MB
-/// each; the mover's f32 weights 18 KB).
+/// each; the mover's f32 weights 20 KB).
 #[derive(Debug, PartialEq)]
 pub struct BuiltIn {
     /// Its file name in `models/`.
@@ -221,12 +221,6 @@ impl MoverNetwork {
         let identity =
             Identity { source: source.clone(), checksum: file.weights_checksum(), training: file.training };
         Ok(Self { identity, mover: Arc::new(mover) })
-    }
-
-    /// A mover the caller built in memory (one in training, a test's), named `name`.
-    pub fn in_memory(mover: Mover, name: &'static str) -> Self {
-        let identity = Identity { source: ModelSource::Memory(name), checksum: "-".into(), training: None };
-        Self { identity, mover: Arc::new(mover) }
     }
 }
 
