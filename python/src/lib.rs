@@ -2,7 +2,9 @@
 //! input (a file, a file's bytes, pixels); `supersvg/__init__.py` picks between them and turns
 //! Python's types (paths, numpy arrays, `paths="auto"`) into their arguments.
 //!
-//! The work runs with the GIL released, on the built-in models, loaded once per process.
+//! The work runs on a worker thread with the GIL released, on the built-in models, loaded once
+//! per process; the calling thread waits for it and hears Ctrl-C meanwhile, which stops the
+//! work (a huge image's read, fine-tuning) and raises `KeyboardInterrupt` at once.
 //! Errors become Python exceptions carrying the library's message: an image that cannot be read,
 //! a budget out of range or an `out` that is the input is a `ValueError`, a file that cannot be
 //! opened or written an `OSError` (`FileNotFoundError` when it does not exist), named in the
@@ -11,12 +13,16 @@
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
+use std::sync::mpsc::RecvTimeoutError;
+use std::time::Duration;
 
 use burn::tensor::Device;
-use common::decode::{self, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
+use common::decode::{self, Cancel, DecodeError, DecodeProblem, LoadOptions, Loaded, PixelLayout};
 use common::outputs::{OutputError, check_output};
 use common::write::write_atomic;
-use infer::{AutoRule, Fills, FinetuneOptions, Job, Limit, Models, Moves, PathBudget};
+use infer::{
+    AutoRule, BUILT_IN_MOVER, Fills, FinetuneOptions, Job, Limit, Models, MoverNetwork, Moves, PathBudget,
+};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -26,10 +32,34 @@ fn models() -> PyResult<&'static (Models, Device)> {
     static MODELS: OnceLock<Result<(Models, Device), String>> = OnceLock::new();
     let loaded = MODELS.get_or_init(|| {
         let device = Device::flex();
-        Models::bundled(true, &device).map(|models| (models, device)).map_err(|err| err.to_string())
+        let sources = |built_in| infer::bundled(built_in).map_err(|err| err.to_string());
+        let (coarse, refine) = (sources(&infer::BUILT_IN_COARSE)?, sources(&infer::BUILT_IN_REFINE)?);
+        Models::from_sources(&coarse, Some(&refine), &device)
+            .map(|models| (models, device))
+            .map_err(|err| err.to_string())
     });
     loaded.as_ref().map_err(|message| PyRuntimeError::new_err(format!("the models: {message}")))
 }
+
+/// [`models`] with the built-in mover, loaded by the first job that can use it: a
+/// `SUPERSVG_MODELS` folder without one serves the jobs that do not.
+fn models_for(job: &Job) -> PyResult<Models> {
+    static MOVER: OnceLock<Result<MoverNetwork, String>> = OnceLock::new();
+    let (models, device) = models()?;
+    if !job.may_move() {
+        return Ok(models.clone());
+    }
+    let mover = MOVER.get_or_init(|| {
+        let source = infer::bundled(&BUILT_IN_MOVER).map_err(|err| err.to_string())?;
+        MoverNetwork::load(&source, device).map_err(|err| err.to_string())
+    });
+    let mover =
+        mover.as_ref().map_err(|message| PyRuntimeError::new_err(format!("the models: {message}")))?;
+    Ok(Models { mover: Some(mover.clone()), ..models.clone() })
+}
+
+/// How often the waiting caller looks for a signal (Ctrl-C) while the work runs.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
 /// What every entry point is asked, beside its input.
 struct Request {
@@ -75,10 +105,20 @@ impl Request {
         }
         if let Some(seconds) = finetune_secs.filter(|s| !(s.is_finite() && *s > 0.0)) {
             return Err(PyValueError::new_err(format!(
-                "finetune_secs {seconds} is not a positive number of seconds"
+                "finetune_secs={seconds}: not a positive number of seconds"
             )));
         }
-        Ok(Self { paths, finetune_secs, size, fills, moves, out })
+        let request = Self { paths, finetune_secs, size, fills, moves, out };
+        // The library's limits, said in the words of `vectorize`'s arguments.
+        request.job().validate().map_err(|err| {
+            let argument = match err.field() {
+                "finetune" => "finetune_secs",
+                "paths" => "paths",
+                field => field,
+            };
+            PyValueError::new_err(format!("{argument}: {err}"))
+        })?;
+        Ok(request)
     }
 
     fn load_options(&self) -> LoadOptions {
@@ -98,34 +138,55 @@ impl Request {
         }
     }
 
-    /// Vectorizes the image `read` gives, with the GIL released; writes `out` if asked. Returns
-    /// the SVG and the warnings the job gave (the caller shows them as Python warnings).
+    /// Vectorizes the image `read` gives on a worker thread, while this one waits with the GIL
+    /// released and looks for signals: Ctrl-C (any exception a signal handler raises) stops the
+    /// work where it hears it (reading a huge image, fine-tuning) and is raised here at once.
+    /// Writes `out` if asked. Returns the SVG and the warnings the job gave (the caller shows
+    /// them as Python warnings).
     fn run(
         &self,
         py: Python<'_>,
-        read: impl FnOnce(&LoadOptions) -> Result<Loaded, DecodeError> + Send,
+        read: impl FnOnce(&LoadOptions) -> Result<Loaded, DecodeError> + Send + 'static,
     ) -> PyResult<(String, Vec<String>)> {
-        let (models, device) = models()?;
         let job = self.job();
-        let options = self.load_options();
-        let (outcome, interrupted) = py.detach(|| {
-            let loaded = read(&options).map_err(decode_error)?;
-            let mut interrupted = None;
-            // Fine-tuning runs for seconds: let Ctrl-C stop it between steps, as it stops Python.
-            let mut on_step = |_: &infer::Progress| match Python::attach(|py| py.check_signals()) {
-                Ok(()) => ControlFlow::Continue(()),
-                Err(err) => {
-                    interrupted = Some(err);
-                    ControlFlow::Break(())
-                }
+        let device = models()?.1.clone();
+        let models = models_for(&job)?;
+        let cancel = Cancel::new();
+        let options = LoadOptions { cancel: cancel.clone(), ..self.load_options() };
+        let (sender, results) = std::sync::mpsc::channel();
+        let stop = cancel.clone();
+        std::thread::spawn(move || {
+            let work = || -> PyResult<infer::Outcome> {
+                let loaded = read(&options).map_err(decode_error)?;
+                let mut on_step = |_: &infer::Progress| match stop.is_raised() {
+                    true => ControlFlow::Break(()),
+                    false => ControlFlow::Continue(()),
+                };
+                infer::run_with_progress(&models, &loaded, &job, &device, &mut on_step)
+                    .map_err(|err| PyValueError::new_err(err.to_string()))
             };
-            let outcome = infer::run_with_progress(models, &loaded, &job, device, &mut on_step)
-                .map_err(|err| PyValueError::new_err(err.to_string()))?;
-            PyResult::Ok((outcome, interrupted))
-        })?;
-        if let Some(err) = interrupted {
-            return Err(err);
-        }
+            // The caller may have gone (a signal): then nobody reads the result.
+            let _ = sender.send(work());
+        });
+        // Waited on with the GIL released, from whichever thread Python runs this one on.
+        let results = std::sync::Mutex::new(results);
+        let outcome = loop {
+            let next = || {
+                results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).recv_timeout(SIGNAL_POLL)
+            };
+            match py.detach(next) {
+                Ok(outcome) => break outcome?,
+                Err(RecvTimeoutError::Timeout) => {
+                    if let Err(err) = py.check_signals() {
+                        cancel.raise();
+                        return Err(err);
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Err(PyRuntimeError::new_err("the vectorizing thread ended without a result"));
+                }
+            }
+        };
         if let Some(path) = &self.out {
             py.detach(|| write_atomic(path, outcome.svg.as_bytes())).map_err(|err| os_error(path, err))?;
         }
@@ -144,7 +205,12 @@ fn check_out(out: &Path, input: Option<&Path>) -> PyResult<()> {
     check_output(out, input.as_slice()).map_err(|err| {
         let kind = match &err {
             OutputError::IsInput { .. } => return PyValueError::new_err(err.to_string()),
-            OutputError::NotWritable { source, .. } => source.kind(),
+            OutputError::NotWritable { source, .. } | OutputError::CreateFolder { source, .. } => {
+                source.kind()
+            }
+            OutputError::NotAFolder(_) => ErrorKind::NotADirectory,
+            OutputError::Busy(_) => ErrorKind::ResourceBusy,
+            OutputError::NotOurs { .. } => ErrorKind::AlreadyExists,
             OutputError::IsFolder(_) => ErrorKind::IsADirectory,
             OutputError::NameTooLong { .. } => ErrorKind::InvalidFilename,
             OutputError::NoFolder { .. } | OutputError::DanglingLink(_) => ErrorKind::NotFound,
@@ -184,7 +250,7 @@ fn from_file(
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     Request::new(paths, finetune_secs, size, (fills, moves), out, Some(&path))?
-        .run(py, |options| decode::open(&path, options))
+        .run(py, move |options| decode::open(&path, options))
 }
 
 /// Vectorizes an image file's bytes (any format the files may have). Returns `(svg, warnings)`.
@@ -201,7 +267,11 @@ fn from_bytes(
     out: Option<PathBuf>,
 ) -> PyResult<(String, Vec<String>)> {
     Request::new(paths, finetune_secs, size, (fills, moves), out, None)?
-        .run(py, |options| decode::decode(data, "<bytes>", options))
+        // The worker outlives a call a signal ends: it reads its own copy.
+        .run(py, {
+            let data = data.to_vec();
+            move |options| decode::decode(&data, "<bytes>", options)
+        })
 }
 
 /// Vectorizes `height` rows of `width` pixels of `channels` (1, 3 or 4) bytes each, in C order.
@@ -224,8 +294,10 @@ fn from_pixels(
 ) -> PyResult<(String, Vec<String>)> {
     let layout = PixelLayout::from_channels(channels)
         .ok_or_else(|| PyValueError::new_err(format!("{channels} channels: an array needs 1, 3 or 4")))?;
-    Request::new(paths, finetune_secs, size, (fills, moves), out, None)?
-        .run(py, |options| decode::from_pixels(data, (width, height), layout, "<array>", options))
+    Request::new(paths, finetune_secs, size, (fills, moves), out, None)?.run(py, {
+        let data = data.to_vec();
+        move |options| decode::from_pixels(&data, (width, height), layout, "<array>", options)
+    })
 }
 
 /// The module Python imports as `supersvg._native`.

@@ -32,7 +32,7 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, mov
     input's size). ``fills`` is what the regions are filled with: ``"flat"`` (each its mean
     colour), ``"linear"`` (a colour ramp where one fits) or ``"auto"`` (a ramp where it draws
     better than its bytes would as regions); ``None`` (the default) is ``"auto"``, but ``"flat"``
-    with ``finetune_secs`` and for flat art (icons, emoji). ``moves`` says where the mover moves
+    for flat art (icons, emoji); ``finetune_secs`` starts from what B draws with the same fills. ``moves`` says where the mover moves
     the drawn outlines onto the image's edges: ``"auto"`` (the default, ``None``: where the regions
     get ramps, photos), ``"on"`` or ``"off"``. ``out`` also writes the SVG to that file (whole or not at all): a ``.svg`` file,
     never the input, checked before any work.
@@ -49,6 +49,8 @@ def vectorize(image, paths=500, *, finetune_secs=None, size=512, fills=None, mov
     if size > _native.MAX_WORKING_SIZE:
         raise ValueError(f"size {size} is not a working size: at most {_native.MAX_WORKING_SIZE} pixels")
     if finetune_secs is not None:
+        if isinstance(finetune_secs, bool) or not isinstance(finetune_secs, (int, float)):
+            raise ValueError(f"finetune_secs={finetune_secs!r}: give a number of seconds")
         try:
             finetune_secs = float(finetune_secs)
         except OverflowError:

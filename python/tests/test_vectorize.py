@@ -3,8 +3,12 @@
 import os
 import pathlib
 import re
+import struct
+import subprocess
+import sys
 import threading
 import time
+import zlib
 
 import numpy
 import pytest
@@ -181,6 +185,73 @@ def test_ctrl_c_stops_a_long_fine_tuning():
     with pytest.raises(KeyboardInterrupt):
         supersvg.vectorize(EXAMPLE, paths=50, size=128, finetune_secs=60)
     assert time.monotonic() - started < 20
+
+
+def huge_black_png(path, side):
+    """A side × side black RGB PNG, written in moments: its deflate stream is one block of rows
+    repeated (each ends in a full flush, so each compresses alike), and its Adler-32 is that of
+    zeros."""
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    row, rows = 1 + 3 * side, 64
+    assert side % rows == 0
+    compressor = zlib.compressobj(1)
+    head = compressor.compress(bytes(row * rows)) + compressor.flush(zlib.Z_FULL_FLUSH)
+    unit = compressor.compress(bytes(row * rows)) + compressor.flush(zlib.Z_FULL_FLUSH)
+    tail = compressor.flush(zlib.Z_FINISH)[:-4]
+    adler = struct.pack(">I", (((row * side) % 65521) << 16) | 1)
+    header = struct.pack(">IIBBBBB", side, side, 8, 2, 0, 0, 0)
+    with open(path, "wb") as out:
+        out.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header))
+        out.write(chunk(b"IDAT", head + unit * (side // rows - 2)))
+        out.write(chunk(b"IDAT", unit + tail + adler))
+        out.write(chunk(b"IEND", b""))
+
+
+def test_ctrl_c_stops_the_read_of_a_huge_image(tmp_path):
+    import signal
+
+    huge = tmp_path / "huge.png"
+    huge_black_png(huge, 40000)  # read row by row: seconds of work
+    supersvg.vectorize(EXAMPLE, paths=20, size=64)  # models loaded before timing
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    started = time.monotonic()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        supersvg.vectorize(huge, paths=10)
+    # The read alone takes several seconds; the interrupt is heard within a poll of it.
+    assert time.monotonic() - started < 2.5
+
+
+def test_finetune_secs_takes_a_number_and_names_itself():
+    for value in ["2", b"2", [2]]:
+        with pytest.raises(ValueError, match="finetune_secs"):
+            supersvg.vectorize(EXAMPLE, paths=20, size=64, finetune_secs=value)
+    for value in [1e9, -1, float("nan")]:
+        with pytest.raises(ValueError, match="finetune_secs"):
+            supersvg.vectorize(EXAMPLE, paths=20, size=64, finetune_secs=value)
+
+
+def test_a_models_folder_without_a_mover_serves_jobs_that_do_not_move(tmp_path):
+    models = ROOT / "models"
+    for name in ["coarse.ckpt", "refine.ckpt"]:
+        (tmp_path / name).write_bytes((models / name).read_bytes())
+    script = (
+        "import supersvg, sys\n"
+        f"svg = supersvg.vectorize({str(EXAMPLE)!r}, paths=20, size=64, fills='flat')\n"
+        "assert svg.startswith('<svg')\n"
+        "try:\n"
+        f"    supersvg.vectorize({str(EXAMPLE)!r}, paths=20, size=64, moves='on')\n"
+        "except RuntimeError as err:\n"
+        "    assert 'mover.ckpt' in str(err), err\n"
+        "else:\n"
+        "    sys.exit('a job that moves ran without a mover')\n"
+    )
+    env = dict(os.environ, SUPERSVG_MODELS=str(tmp_path))
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
 
 
 def test_moves_choose_where_the_mover_runs():

@@ -11,6 +11,8 @@ use image::imageops::FilterType;
 use image::metadata::Orientation;
 use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits, Rgb, Rgb32FImage};
 
+use crate::readable::{self, Readable, StreamError};
+
 /// Images with more pixels than this are never decoded whole: PNGs are streamed row by row into
 /// the working resolution, other formats are refused. 64 Mpx of 8-bit RGBA is 256 MiB.
 const MAX_DECODED_PIXELS: u64 = 64 << 20;
@@ -59,10 +61,10 @@ pub enum DecodeProblem {
     #[error("not an image in a known format")]
     UnknownFormat,
     /// The decoder refused the file.
-    #[error("{0}")]
+    #[error("{}", plain(&.0.to_string()))]
     Image(image::ImageError),
     /// The PNG stream decoder refused the file.
-    #[error("{0}")]
+    #[error("{}", plain(&.0.to_string()))]
     Png(png::DecodingError),
     /// The image has no pixels.
     #[error("the image is empty ({width}×{height})")]
@@ -117,15 +119,34 @@ pub enum DecodeProblem {
         /// Their layout.
         layout: PixelLayout,
     },
-    /// An input that cannot seek, longer than [`MAX_STREAMED_BYTES`].
-    #[error(
-        "more than {} MiB from a stream (a pipe, stdin or a device); save it to a file first",
-        MAX_STREAMED_BYTES >> 20
-    )]
-    StreamTooLong,
+    /// An input that cannot seek (a pipe, stdin, a device) that gave nothing, or more than
+    /// [`MAX_STREAMED_BYTES`].
+    #[error("{0}")]
+    Stream(StreamError),
     /// A PNG whose palette the decoder did not expand.
     #[error("unexpanded palette")]
     UnexpandedPalette,
+    /// The caller stopped the read ([`LoadOptions::cancel`]).
+    #[error("stopped while it was read")]
+    Cancelled,
+}
+
+/// A decoder's message in plain words on one line: the PNG decoder names a chunk by its Rust
+/// value (`ChunkType { type: IDAT, critical: true, … }`), which becomes its name (`IDAT`), and
+/// line breaks become spaces.
+fn plain(message: &str) -> String {
+    const CHUNK: &str = "ChunkType { type: ";
+    let mut out = String::new();
+    let mut rest = message;
+    while let Some(at) = rest.find(CHUNK) {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + CHUNK.len()..];
+        let name = after.split([',', ' ', '}']).next().unwrap_or("");
+        out.push_str(name);
+        rest = after.find('}').map_or("", |end| &after[end + 1..]);
+    }
+    out.push_str(rest);
+    out.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 /// An input image scaled to the working resolution.
@@ -157,11 +178,48 @@ pub struct LoadOptions {
     pub allow_truncated: bool,
     /// Transparent pixels are composited over this colour (RGB in [0, 1]).
     pub background: [f32; 3],
+    /// Raised by the caller to stop reading an image streamed row by row (a huge PNG, which
+    /// takes seconds): the read ends with [`DecodeProblem::Cancelled`].
+    pub cancel: Cancel,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
-        Self { long_side: 512, allow_truncated: false, background: [1.0; 3] }
+        Self { long_side: 512, allow_truncated: false, background: [1.0; 3], cancel: Cancel::default() }
+    }
+}
+
+/// A flag a caller raises to stop a long read ([`LoadOptions::cancel`]); none by default.
+/// Clones share the flag; two are equal when they are the same flag.
+#[derive(Clone, Debug, Default)]
+pub struct Cancel(Option<std::sync::Arc<std::sync::atomic::AtomicBool>>);
+
+impl Cancel {
+    /// A flag not raised yet.
+    pub fn new() -> Self {
+        Self(Some(Default::default()))
+    }
+
+    /// Raises it.
+    pub fn raise(&self) {
+        if let Some(flag) = &self.0 {
+            flag.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+
+    /// Whether it was raised.
+    pub fn is_raised(&self) -> bool {
+        self.0.as_ref().is_some_and(|flag| flag.load(std::sync::atomic::Ordering::SeqCst))
+    }
+}
+
+impl PartialEq for Cancel {
+    fn eq(&self, other: &Self) -> bool {
+        match (&self.0, &other.0) {
+            (Some(a), Some(b)) => std::sync::Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        }
     }
 }
 
@@ -173,13 +231,13 @@ pub fn load(path: &Path, long_side: u32) -> Result<Loaded, DecodeError> {
 }
 
 /// Reads the image file `path` as `options` say.
-/// A named pipe, `/dev/stdin` or a shell's `<(…)` cannot seek: such an input is read whole first.
+/// A named pipe, `/dev/stdin` or a shell's `<(…)` cannot seek: such an input is read whole first
+/// (a pipe no program writes to is an empty input, not a wait: [`readable::open`]).
 pub fn open(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeError> {
     let name = path.display().to_string();
     let fail = |problem| DecodeError { input: name.clone(), problem };
-    let regular = std::fs::metadata(path).map_err(|err| fail(DecodeProblem::Io(err)))?.is_file();
-    if !regular {
-        let bytes = File::open(path).map_err(DecodeProblem::Io).and_then(read_stream).map_err(fail)?;
+    if let Readable::Stream(stream) = readable::open(path).map_err(|err| fail(DecodeProblem::Io(err)))? {
+        let bytes = read_stream(stream).map_err(fail)?;
         return decode(&bytes, &name, options);
     }
     let reader = || File::open(path).map(BufReader::new);
@@ -188,20 +246,28 @@ pub fn open(path: &Path, options: &LoadOptions) -> Result<Loaded, DecodeError> {
 
 /// The whole of a stream that holds an image (stdin, a pipe, a device), refused as soon as its
 /// first bytes are no image format this program reads, or once it passes [`MAX_STREAMED_BYTES`]:
-/// `/dev/zero` or an endless pipe ends with an error, not with memory full.
-pub fn read_stream(stream: impl Read) -> Result<Vec<u8>, DecodeProblem> {
+/// `/dev/zero` or an endless pipe ends with an error, not with memory full; an empty stream
+/// says so.
+pub fn read_stream(mut stream: impl Read) -> Result<Vec<u8>, DecodeProblem> {
     /// Enough bytes for every format's signature.
     const SIGNATURE: usize = 16;
     let mut bytes = Vec::new();
-    let mut capped = stream.take(MAX_STREAMED_BYTES + 1);
-    (&mut capped).take(SIGNATURE as u64).read_to_end(&mut bytes).map_err(DecodeProblem::Io)?;
+    (&mut stream).take(SIGNATURE as u64).read_to_end(&mut bytes).map_err(DecodeProblem::Io)?;
+    if bytes.is_empty() {
+        return Err(DecodeProblem::Stream(StreamError::Empty));
+    }
     if bytes.len() == SIGNATURE && image::guess_format(&bytes).is_err() {
         return Err(DecodeProblem::UnknownFormat);
     }
-    capped.read_to_end(&mut bytes).map_err(DecodeProblem::Io)?;
-    if bytes.len() as u64 > MAX_STREAMED_BYTES {
-        return Err(DecodeProblem::StreamTooLong);
-    }
+    let rest = match readable::read_whole(stream, MAX_STREAMED_BYTES - SIGNATURE as u64) {
+        Err(StreamError::Empty) => Vec::new(),
+        Err(StreamError::Io(err)) => return Err(DecodeProblem::Io(err)),
+        Err(StreamError::TooLong { .. }) => {
+            return Err(DecodeProblem::Stream(StreamError::TooLong { max: MAX_STREAMED_BYTES }));
+        }
+        Ok(rest) => rest,
+    };
+    bytes.extend(rest);
     Ok(bytes)
 }
 
@@ -251,10 +317,8 @@ fn read<R: BufRead + Seek>(
     let streamed =
         format == ImageFormat::Png && (shrinks((width, height), target) || pixels > MAX_DECODED_PIXELS);
     let (image, original) = if streamed {
-        (
-            stream_png(reader().map_err(DecodeProblem::Io)?, (width, height), target, background)?,
-            (width, height),
-        )
+        let source = reader().map_err(DecodeProblem::Io)?;
+        (stream_png(source, (width, height), target, background, &options.cancel)?, (width, height))
     } else if pixels <= MAX_DECODED_PIXELS {
         let mut whole = guessed(reader().map_err(DecodeProblem::Io)?)?;
         let mut limits = Limits::default();
@@ -443,6 +507,7 @@ fn stream_png(
     (width, height): (u32, u32),
     (tw, th): (u32, u32),
     background: [f32; 3],
+    cancel: &Cancel,
 ) -> Result<Rgb32FImage, DecodeProblem> {
     let mut decoder = png::Decoder::new(source);
     decoder.set_transformations(png::Transformations::normalize_to_color8());
@@ -463,6 +528,9 @@ fn stream_png(
     let mut line = vec![[0.0f64; 3]; tw as usize];
     let mut y = 0u32;
     while let Some(row) = reader.next_row().map_err(DecodeProblem::Png)? {
+        if y % 64 == 0 && cancel.is_raised() {
+            return Err(DecodeProblem::Cancelled);
+        }
         line.iter_mut().for_each(|cell| *cell = [0.0; 3]);
         for (pixel, shares) in row.data().chunks_exact(channels).zip(&columns) {
             let (rgb, alpha) = match pixel {
@@ -526,11 +594,50 @@ mod tests {
         assert!(matches!(read_stream(std::io::repeat(0)), Err(DecodeProblem::UnknownFormat)));
         // A PNG's signature, then no end: refused at the cap, not when memory runs out.
         let endless = Cursor::new(b"\x89PNG\r\n\x1a\n".to_vec()).chain(std::io::repeat(0));
-        assert!(matches!(read_stream(endless), Err(DecodeProblem::StreamTooLong)));
+        assert!(matches!(
+            read_stream(endless),
+            Err(DecodeProblem::Stream(StreamError::TooLong { max: MAX_STREAMED_BYTES }))
+        ));
+        // Nothing at all is said as such.
+        assert!(matches!(read_stream(std::io::empty()), Err(DecodeProblem::Stream(StreamError::Empty))));
         // What fits is read whole.
         let mut png = Vec::new();
         image::RgbImage::new(3, 2).write_to(&mut Cursor::new(&mut png), ImageFormat::Png).unwrap();
         assert_eq!(read_stream(Cursor::new(&png)).unwrap(), png);
+    }
+
+    /// A damaged file is said in plain words, on one line.
+    #[test]
+    fn decoder_messages_are_plain() {
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(8, 8, Rgb([9, 90, 200]))
+            .write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
+            .unwrap();
+        // The IDAT chunk's checksum, wrong: the decoder names the chunk.
+        let at = png.windows(4).position(|w| w == b"IDAT").unwrap();
+        let len = u32::from_be_bytes(png[at - 4..at].try_into().unwrap()) as usize;
+        png[at + 4 + len] ^= 0xff;
+        let err = decode(&png, "bad.png", &LoadOptions::default()).unwrap_err().to_string();
+        assert!(err.starts_with("bad.png: ") && err.contains("IDAT"), "{err}");
+        assert!(!err.contains("ChunkType") && !err.contains('{') && !err.contains('\n'), "{err}");
+        assert_eq!(plain("a ChunkType { type: IHDR, critical: true } chunk.\n"), "a IHDR chunk.");
+    }
+
+    /// A PNG read row by row stops when its caller raises the flag; others are read.
+    #[test]
+    fn a_streamed_read_stops_when_asked() {
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(400, 300, Rgb([9, 90, 200]))
+            .write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
+            .unwrap();
+        let cancel = Cancel::new();
+        let options = LoadOptions { long_side: 64, cancel: cancel.clone(), ..LoadOptions::default() };
+        assert_eq!(decode(&png, "big.png", &options).unwrap().image.dimensions(), (64, 48));
+        cancel.raise();
+        let err = decode(&png, "big.png", &options).unwrap_err();
+        assert!(matches!(err.problem, DecodeProblem::Cancelled), "{err}");
+        assert_ne!(options.cancel, Cancel::new());
+        assert_eq!(LoadOptions::default().cancel, Cancel::default());
     }
 
     #[test]

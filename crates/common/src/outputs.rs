@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use crate::write::{NAME_MAX, folder_of, probe_folder};
 
-/// Why an output cannot be written where it was asked to go.
+/// Why an output cannot be written where it was asked to go, or its folder cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     /// The output is one of the inputs (the same file, through links or another name).
@@ -41,6 +41,29 @@ pub enum OutputError {
         folder: PathBuf,
         /// What creating a file there said.
         source: std::io::Error,
+    },
+    /// Something other than a folder where an output folder goes.
+    #[error("{}: is a file, not a folder", .0.display())]
+    NotAFolder(PathBuf),
+    /// The output folder could not be created.
+    #[error("{}: cannot create the folder: {source}", path.display())]
+    CreateFolder {
+        /// The folder.
+        path: PathBuf,
+        /// What creating it said.
+        source: std::io::Error,
+    },
+    /// An output folder another run of a program is writing to ([`lock_folder`]).
+    #[error("{}: another run is writing to this folder; wait for it to end or choose another folder", .0.display())]
+    Busy(PathBuf),
+    /// A file a program derives from its output's name (a report's contact sheet) that it did not
+    /// write itself ([`check_replaceable`]).
+    #[error("{}: exists and was not written by {by}; move it away or choose another name", path.display())]
+    NotOurs {
+        /// The file.
+        path: PathBuf,
+        /// The program that would replace it.
+        by: &'static str,
     },
     /// A file name longer than [`NAME_MAX`] bytes.
     #[error("{}: the file name is {len} bytes, longer than the {NAME_MAX} a file system takes", path.display())]
@@ -93,6 +116,79 @@ pub fn check_writable(file: &Path) -> Result<(), OutputError> {
         folder: folder.to_path_buf(),
         source,
     })
+}
+
+/// Creates the output folder `path` (and its parents) unless it is there; a file in its place
+/// is said as such, not as the operating system's "File exists".
+pub fn create_folder(path: &Path) -> Result<(), OutputError> {
+    // `plain/` names the file `plain` too (asking for `plain/` itself fails with "not a folder").
+    let bare = path.components().as_path();
+    let not_a_folder = || std::fs::metadata(bare).is_ok_and(|m| !m.is_dir());
+    if not_a_folder() {
+        return Err(OutputError::NotAFolder(path.to_path_buf()));
+    }
+    std::fs::create_dir_all(path).map_err(|source| match not_a_folder() {
+        true => OutputError::NotAFolder(path.to_path_buf()),
+        false => OutputError::CreateFolder { path: path.to_path_buf(), source },
+    })
+}
+
+/// The name of the lock file [`lock_folder`] takes in a folder.
+pub const LOCK_NAME: &str = ".supersvg.lock";
+
+/// An output folder held by this process ([`lock_folder`]) until it is dropped (or the process
+/// ends, however it ends: the operating system releases the lock).
+#[derive(Debug)]
+pub struct FolderLock {
+    _file: std::fs::File,
+}
+
+/// Holds `folder` (which must exist) for this process, so that a second run writing to the same
+/// folder is refused before any work ([`OutputError::Busy`]) instead of both losing each
+/// other's files: an exclusive lock on [`LOCK_NAME`] in it, created without following a
+/// planted link.
+pub fn lock_folder(folder: &Path) -> Result<FolderLock, OutputError> {
+    let path = folder.join(LOCK_NAME);
+    let failed =
+        |source| OutputError::NotWritable { path: path.clone(), folder: folder.to_path_buf(), source };
+    let file = open_lock(&path).map_err(failed)?;
+    match file.try_lock() {
+        Ok(()) => Ok(FolderLock { _file: file }),
+        Err(std::fs::TryLockError::WouldBlock) => Err(OutputError::Busy(folder.to_path_buf())),
+        Err(std::fs::TryLockError::Error(source)) => Err(failed(source)),
+    }
+}
+
+#[cfg(unix)]
+fn open_lock(path: &Path) -> std::io::Result<std::fs::File> {
+    use rustix::fs::{Mode, OFlags};
+    let flags = OFlags::RDWR | OFlags::CREATE | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+    Ok(rustix::fs::open(path, flags, Mode::from_raw_mode(0o644))?.into())
+}
+
+#[cfg(not(unix))]
+fn open_lock(path: &Path) -> std::io::Result<std::fs::File> {
+    std::fs::OpenOptions::new().read(true).write(true).create(true).truncate(false).open(path)
+}
+
+/// How many bytes at the start of a file [`check_replaceable`] reads for the mark.
+const MARK_WITHIN: usize = 4096;
+
+/// Refuses to replace `path` unless it is absent or a file `by` wrote: one whose first bytes
+/// hold `mark` (a PNG's text chunk, an SVG's comment). For the files a program names after its
+/// output (`eval --out keep.md` writes `keep.png` beside it): a file of that name the user
+/// made is not silently replaced.
+pub fn check_replaceable(path: &Path, mark: &str, by: &'static str) -> Result<(), OutputError> {
+    let Ok(file) = std::fs::File::open(path) else {
+        return match std::fs::symlink_metadata(path) {
+            Err(_) => Ok(()),
+            Ok(_) => Err(OutputError::NotOurs { path: path.to_path_buf(), by }),
+        };
+    };
+    let mut start = Vec::with_capacity(MARK_WITHIN);
+    let ours = std::io::Read::read_to_end(&mut std::io::Read::take(file, MARK_WITHIN as u64), &mut start)
+        .is_ok_and(|_| start.windows(mark.len()).any(|window| window == mark.as_bytes()));
+    if ours { Ok(()) } else { Err(OutputError::NotOurs { path: path.to_path_buf(), by }) }
 }
 
 /// Whether `a` and `b` are the same file: the same device and inode where both exist (so links,
@@ -154,6 +250,45 @@ mod tests {
             assert!(matches!(check_output(&dangling, &[&image]), Err(OutputError::DanglingLink(_))));
         }
         check_output(&dir.join("image.svg"), &[&image, &other]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A folder is held by one run at a time; a file where a folder goes is said as such.
+    #[test]
+    fn an_output_folder_is_held_by_one_run() {
+        let dir = scratch("lock");
+        let first = lock_folder(&dir).unwrap();
+        assert!(matches!(lock_folder(&dir), Err(OutputError::Busy(_))));
+        drop(first);
+        let _again = lock_folder(&dir).unwrap();
+        let file = dir.join("plain");
+        std::fs::write(&file, b"x").unwrap();
+        assert!(matches!(create_folder(&file), Err(OutputError::NotAFolder(_))));
+        let slashed = PathBuf::from(format!("{}/", file.display()));
+        assert!(matches!(create_folder(&slashed), Err(OutputError::NotAFolder(_))));
+        assert!(matches!(
+            create_folder(&file.join("below")),
+            Err(OutputError::NotAFolder(_) | OutputError::CreateFolder { .. })
+        ));
+        let err = create_folder(&file).unwrap_err().to_string();
+        assert!(err.ends_with("is a file, not a folder"), "{err}");
+        create_folder(&dir.join("new/deeper")).unwrap();
+        assert!(dir.join("new/deeper").is_dir());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A derived output is replaced only when it bears its program's mark.
+    #[test]
+    fn only_marked_files_are_replaced() {
+        let dir = scratch("marks");
+        let (ours, theirs) = (dir.join("ours.png"), dir.join("theirs.png"));
+        std::fs::write(&ours, b"\x89PNG....tEXtSoftware\0supersvg eval....").unwrap();
+        std::fs::write(&theirs, b"\x89PNG....a holiday picture").unwrap();
+        check_replaceable(&ours, "supersvg eval", "eval").unwrap();
+        check_replaceable(&dir.join("absent.png"), "supersvg eval", "eval").unwrap();
+        let err = check_replaceable(&theirs, "supersvg eval", "eval").unwrap_err();
+        assert!(matches!(err, OutputError::NotOurs { .. }), "{err}");
+        assert!(err.to_string().contains("not written by eval"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

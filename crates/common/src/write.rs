@@ -1,10 +1,13 @@
 //! Writing results without ever leaving a partial file behind, and without following a link
-//! someone else planted where a temporary file goes.
+//! someone else planted where a temporary file goes. The temporaries being written are known,
+//! so a program that is stopped ([`exit`]) lets them finish or removes them.
 
 use std::fs::{File, OpenOptions};
 use std::hash::{BuildHasher, Hasher};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Condvar, Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 use image::RgbImage;
 
@@ -27,20 +30,94 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     }
     let name = path.file_name().ok_or_else(|| std::io::Error::other("not a file path"))?;
     let (mut file, temporary) = create_temporary(folder_of(path), &name.to_string_lossy())?;
-    let result =
-        file.write_all(bytes).and_then(|()| file.sync_all()).and_then(|()| std::fs::rename(&temporary, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temporary);
-    }
-    result
+    file.write_all(bytes).and_then(|()| file.sync_all())?;
+    temporary.rename_to(path)
 }
 
 /// Whether files can be created in `folder`: creates a temporary there (exclusively, never
 /// through a link) and removes it.
 pub fn probe_folder(folder: &Path) -> std::io::Result<()> {
-    let (file, temporary) = create_temporary(folder, "probe")?;
-    drop(file);
-    std::fs::remove_file(temporary)
+    create_temporary(folder, "probe").map(drop)
+}
+
+/// The temporaries of this process being written now, and whether the process is ending
+/// ([`exit`]): then no new one is made.
+struct InFlight {
+    paths: Vec<PathBuf>,
+    closing: bool,
+}
+
+static IN_FLIGHT: Mutex<InFlight> = Mutex::new(InFlight { paths: Vec::new(), closing: false });
+/// Signalled when a temporary is renamed into place or removed.
+static SETTLED: Condvar = Condvar::new();
+
+fn in_flight() -> std::sync::MutexGuard<'static, InFlight> {
+    IN_FLIGHT.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// A temporary file being written: renamed into place ([`Temporary::rename_to`]) or, dropped
+/// before that, removed.
+struct Temporary {
+    path: PathBuf,
+}
+
+impl Temporary {
+    /// Registers `path` as in flight, unless the process is ending.
+    fn register(path: PathBuf) -> std::io::Result<Self> {
+        let mut in_flight = in_flight();
+        if in_flight.closing {
+            return Err(std::io::Error::other("the program is stopping"));
+        }
+        in_flight.paths.push(path.clone());
+        Ok(Self { path })
+    }
+
+    /// Forgets the temporary without removing anything: its name was taken by a file not ours.
+    fn disown(self) {
+        let mut in_flight = in_flight();
+        in_flight.paths.retain(|path| *path != self.path);
+        drop(in_flight);
+        std::mem::forget(self);
+    }
+
+    /// Renames the temporary over `path`: the file appears whole, at once.
+    fn rename_to(self, path: &Path) -> std::io::Result<()> {
+        std::fs::rename(&self.path, path)
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        // Renamed, it is no longer there; otherwise it goes.
+        let _ = std::fs::remove_file(&self.path);
+        let mut in_flight = in_flight();
+        in_flight.paths.retain(|path| *path != self.path);
+        SETTLED.notify_all();
+    }
+}
+
+/// How long [`exit`] lets the writes under way finish.
+const WRITE_GRACE: Duration = Duration::from_secs(1);
+
+/// Ends the process with `code`, as a stop does (Ctrl-C, SIGTERM): no new file is started, the
+/// writes under way get [`WRITE_GRACE`] to finish, and the temporaries of any still going are
+/// removed, so every file appears whole or not at all and none is left behind.
+pub fn exit(code: i32) -> ! {
+    let deadline = Instant::now() + WRITE_GRACE;
+    let mut in_flight = in_flight();
+    in_flight.closing = true;
+    while !in_flight.paths.is_empty() {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            break;
+        }
+        in_flight = SETTLED.wait_timeout(in_flight, left).unwrap_or_else(PoisonError::into_inner).0;
+    }
+    for path in &in_flight.paths {
+        let _ = std::fs::remove_file(path);
+    }
+    // Still holding the list: no other thread can start or finish a write now.
+    std::process::exit(code)
 }
 
 /// How many names a temporary file tries before giving up: each is random, so a clash means
@@ -52,14 +129,27 @@ const TEMPORARY_TRIES: usize = 16;
 pub const NAME_MAX: usize = 255;
 
 /// A new file `.{stem}.{random}.tmp` in `folder`, created exclusively (`O_EXCL`: an existing
-/// file or link of that name is never opened, so a planted link is never followed), and its path.
-/// A stem too long for the name to fit [`NAME_MAX`] is cut short.
-pub fn create_temporary(folder: &Path, stem: &str) -> std::io::Result<(File, PathBuf)> {
+/// file or link of that name is never opened, so a planted link is never followed), and the
+/// temporary it is. A stem too long for the name to fit [`NAME_MAX`] is cut short.
+fn create_temporary(folder: &Path, stem: &str) -> std::io::Result<(File, Temporary)> {
     let stem = shortened(stem, NAME_MAX - TEMPORARY_EXTRA);
-    fresh(
+    // Registered before it exists, so that an exit in between removes it.
+    let (file, temporary) = fresh(
         || folder.join(format!(".{stem}.{:016x}.tmp", random())),
-        |path| OpenOptions::new().write(true).create_new(true).open(path),
-    )
+        |path| {
+            let temporary = Temporary::register(path.to_path_buf())?;
+            match OpenOptions::new().write(true).create_new(true).open(path) {
+                Ok(file) => Ok((file, temporary)),
+                Err(err) => {
+                    // Not ours: what is there stays.
+                    temporary.disown();
+                    Err(err)
+                }
+            }
+        },
+    )?
+    .0;
+    Ok((file, temporary))
 }
 
 /// What a temporary's name adds to its stem: `.`, `.`, 16 hexadecimal digits and `.tmp`.
@@ -129,6 +219,21 @@ pub fn write_png(path: &Path, image: &RgbImage) -> std::io::Result<()> {
     write_atomic(path, &png_bytes(image))
 }
 
+/// Encodes `image` as PNG with `software` in its `Software` text chunk, which comes before the
+/// pixels, and writes it atomically: a file a program can tell it wrote
+/// ([`crate::outputs::check_replaceable`]).
+pub fn write_png_marked(path: &Path, image: &RgbImage, software: &str) -> std::io::Result<()> {
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, image.width(), image.height());
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.add_text_chunk("Software".into(), software.into()).map_err(std::io::Error::other)?;
+    let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
+    writer.write_image_data(image.as_raw()).map_err(std::io::Error::other)?;
+    writer.finish().map_err(std::io::Error::other)?;
+    write_atomic(path, &bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -173,11 +278,39 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A marked PNG reads back as the image, and holds its mark where the check looks.
+    #[test]
+    fn marked_pngs_read_back_and_carry_their_mark() {
+        let dir = scratch("marked");
+        let file = dir.join("sheet.png");
+        let image = RgbImage::from_fn(7, 5, |x, y| image::Rgb([x as u8 * 30, y as u8 * 40, 9]));
+        write_png_marked(&file, &image, "supersvg eval").unwrap();
+        assert_eq!(image::open(&file).unwrap().to_rgb8(), image);
+        crate::outputs::check_replaceable(&file, "supersvg eval", "eval").unwrap();
+        assert!(crate::outputs::check_replaceable(&file, "supersvg tune", "tune").is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A temporary dropped before it is renamed into place is removed.
+    #[test]
+    fn a_temporary_dropped_is_removed() {
+        let dir = scratch("dropped");
+        let (file, temporary) = create_temporary(&dir, "out.svg").unwrap();
+        let path = temporary.path.clone();
+        drop(file);
+        assert!(path.exists());
+        drop(temporary);
+        assert!(!path.exists());
+        assert!(in_flight().paths.iter().all(|p| *p != path), "still registered");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn temporaries_are_new_files_with_unpredictable_names() {
         let dir = scratch("names");
         let (_, first) = create_temporary(&dir, "out.svg").unwrap();
         let (_, second) = create_temporary(&dir, "out.svg").unwrap();
+        let (first, second) = (first.path.clone(), second.path.clone());
         assert_ne!(first, second);
         let name = first.file_name().unwrap().to_string_lossy().into_owned();
         assert!(name.starts_with(".out.svg.") && name.ends_with(".tmp"), "{name}");
@@ -189,7 +322,7 @@ mod tests {
         assert!(create_temporary_folder(&dir.join("missing"), "work").is_err());
         // A stem too long for the file system is cut short, on a character.
         let (_, long) = create_temporary(&dir, &"é".repeat(200)).unwrap();
-        let name = long.file_name().unwrap().to_string_lossy().into_owned();
+        let name = long.path.file_name().unwrap().to_string_lossy().into_owned();
         assert!(name.len() <= NAME_MAX && name.starts_with(".éé"), "{}", name.len());
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -12,7 +12,7 @@ pub fn finish(result: anyhow::Result<()>) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            common::say!("error: {}", common::say::chain(err.as_ref()));
             ExitCode::FAILURE
         }
     }
@@ -40,8 +40,12 @@ fn shell_quoted(arg: &str) -> String {
     }
 }
 
-/// E_c, E_r and the mover, from the given checkpoints or the bundled ones (each network's
-/// [`infer::Identity`] says which).
+/// The mark the files `eval` names after its report carry (the contact sheet's `Software` text,
+/// the chart's comment), so that a file of that name it did not write is never replaced.
+pub const MARK: &str = "supersvg eval";
+
+/// E_c, E_r and the mover, from the given checkpoints (read and verified now) or the bundled
+/// ones (verified when first used); each network's [`infer::Identity`] says which.
 pub fn load_models(
     coarse: Option<&Path>,
     refine: Option<&Path>,

@@ -12,7 +12,7 @@ mod rate;
 mod report;
 mod spill;
 
-pub use cli::{command_line, finish, load_models};
+pub use cli::{MARK, command_line, finish, load_models};
 pub use lpips::{LPIPS_ENV, Lpips, LpipsError};
 pub use method::{
     Anatomy, Budget, DrawError, Drawing, Finetuned, Input, Method, Ours, Potrace, SPILL_DILATION, SlicMosaic,

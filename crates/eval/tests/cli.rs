@@ -225,3 +225,88 @@ fn a_sweep_reports_each_budget_and_draws_the_chart() {
     assert_eq!(png.width(), width.ceil() as u32);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+const TUNE: &str = env!("CARGO_BIN_EXE_tune");
+
+/// No report lands on a model file `eval` or `tune` reads (or `tune` rewrites), whatever its
+/// name, and a file named after the report that `eval` did not write (`keep.png` beside
+/// `--out keep.md`) is never replaced; one it wrote is, on the next run. A file where `--svgs`
+/// wants a folder is said as such.
+#[test]
+fn reports_never_replace_inputs_or_files_they_did_not_write() {
+    let dir = std::env::temp_dir().join(format!("supersvg-eval-inputs-{}", std::process::id()));
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).unwrap();
+    image::RgbImage::from_fn(24, 16, |x, y| image::Rgb([(x * 9) as u8, (y * 13) as u8, 90]))
+        .save(images.join("a.png"))
+        .unwrap();
+    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models");
+    for name in ["coarse.ckpt", "mover.ckpt", "refine.ckpt"] {
+        std::fs::copy(models.join(name), dir.join(name)).unwrap();
+    }
+    let p = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let original = |name: &str| std::fs::read(models.join(name)).unwrap();
+    let refused = |program: &str, args: &[String], says: &str| {
+        let result = Command::new(program).args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
+        assert_eq!(result.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+    };
+    let eval = |flags: &[&str]| -> Vec<String> {
+        [&[p("images").as_str(), "--peers", "", "--paths", "20", "--size", "24"][..], flags]
+            .concat()
+            .into_iter()
+            .map(String::from)
+            .collect()
+    };
+    for (flag, name) in [("--coarse", "coarse.ckpt"), ("--mover", "mover.ckpt"), ("--refine", "refine.ckpt")]
+    {
+        refused(EVAL, &eval(&[flag, &p(name), "--out", &p(name)]), "refusing to overwrite");
+        assert_eq!(std::fs::read(dir.join(name)).unwrap(), original(name), "{name} changed");
+    }
+    let tune = |flags: &[&str]| -> Vec<String> {
+        [
+            &[
+                p("images").as_str(),
+                "--paths",
+                "20",
+                "--size",
+                "24",
+                "--coarse-share",
+                "0",
+                "--refine-share",
+                "0",
+            ][..],
+            flags,
+        ]
+        .concat()
+        .into_iter()
+        .map(String::from)
+        .collect()
+    };
+    for (flag, name) in [("--coarse", "coarse.ckpt"), ("--refine", "refine.ckpt"), ("--write", "coarse.ckpt")]
+    {
+        refused(TUNE, &tune(&[flag, &p(name), "--out", &p(name)]), "refusing to overwrite");
+        assert_eq!(std::fs::read(dir.join(name)).unwrap(), original(name), "{name} changed");
+    }
+
+    std::fs::write(dir.join("keep.png"), b"a picture of the user's own").unwrap();
+    refused(EVAL, &eval(&["--out", &p("keep.md")]), "keep.png: exists and was not written by eval");
+    assert_eq!(std::fs::read(dir.join("keep.png")).unwrap(), b"a picture of the user's own");
+    std::fs::remove_file(dir.join("keep.png")).unwrap();
+    for run in 0..2 {
+        let result = Command::new(EVAL).args(eval(&["--out", &p("keep.md")])).output().unwrap();
+        assert!(result.status.success(), "run {run}: {}", String::from_utf8_lossy(&result.stderr));
+    }
+    std::fs::write(dir.join("plain"), b"a file").unwrap();
+    refused(EVAL, &eval(&["--out", &p("r.md"), "--svgs", &p("plain")]), "plain: is a file, not a folder");
+    // A damaged model file is refused before any image is drawn, by both programs.
+    let mut damaged = original("coarse.ckpt");
+    let last = damaged.len() - 3;
+    damaged[last] ^= 1;
+    std::fs::write(dir.join("coarse.ckpt"), damaged).unwrap();
+    refused(EVAL, &eval(&["--coarse", &p("coarse.ckpt"), "--out", &p("r.md")]), "damaged checkpoint");
+    refused(TUNE, &tune(&["--coarse", &p("coarse.ckpt"), "--out", &p("t.md")]), "damaged checkpoint");
+    assert!(!dir.join("r.md").exists() && !dir.join("t.md").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

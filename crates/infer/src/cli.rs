@@ -6,9 +6,9 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{anyhow, bail};
 use common::WORKING_SIZES;
-use common::outputs::{absolute, check_not_input, check_writable};
+use common::outputs::{absolute, check_not_input, check_writable, create_folder};
 
 /// A long side within [`WORKING_SIZES`].
 pub fn working_size(text: &str) -> Result<u32, String> {
@@ -89,7 +89,7 @@ impl Plan {
     /// Creates the output folders and checks that every output can be written there.
     pub fn prepare(&self) -> anyhow::Result<()> {
         for folder in &self.folders {
-            std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
+            create_folder(folder)?;
         }
         for planned in &self.jobs {
             let outputs = [&planned.svg, &planned.preview, &planned.compare, &planned.metrics];
@@ -108,9 +108,9 @@ impl Planned {
 
 /// Every one of `inputs` (`-`: stdin) with its outputs, and the output folders to create, or
 /// the first reason the command cannot run as asked: a file output for several inputs, a
-/// wrong extension, an output that is an input ([`check_not_input`]), two outputs on one file.
-/// Creates nothing ([`Plan::prepare`] does).
-pub fn plan(inputs: &[PathBuf], outputs: Outputs) -> anyhow::Result<Plan> {
+/// wrong extension, an output that is an input or one of the `models` files the command reads
+/// ([`check_not_input`]), two outputs on one file. Creates nothing ([`Plan::prepare`] does).
+pub fn plan(inputs: &[PathBuf], models: &[PathBuf], outputs: Outputs) -> anyhow::Result<Plan> {
     let inputs: Vec<Option<PathBuf>> =
         inputs.iter().map(|path| (path.as_os_str() != "-").then(|| path.clone())).collect();
     if inputs.iter().filter(|input| input.is_none()).count() > 1 {
@@ -158,7 +158,7 @@ pub fn plan(inputs: &[PathBuf], outputs: Outputs) -> anyhow::Result<Plan> {
     let compare = optional("--compare", outputs.compare, "png")?;
     let metrics = optional("--metrics", outputs.metrics, "json")?;
 
-    let files: Vec<&PathBuf> = inputs.iter().flatten().collect();
+    let files: Vec<&PathBuf> = inputs.iter().flatten().chain(models).collect();
     // (absolute path, what would be written there), for every output file.
     let mut taken: Vec<(PathBuf, String)> = Vec::new();
     let mut jobs = Vec::new();
@@ -198,7 +198,7 @@ mod tests {
     fn folders_name_each_output_after_its_input() {
         let outputs =
             Outputs { svg: Path::new("out/"), preview: None, compare: None, metrics: Some(Path::new("m/")) };
-        let plan = plan(&paths(&["a/x.png", "b/y.jpg", "-"]), outputs).unwrap();
+        let plan = plan(&paths(&["a/x.png", "b/y.jpg", "-"]), &[], outputs).unwrap();
         let svgs: Vec<_> = plan.jobs.iter().map(|j| j.svg.clone().unwrap()).collect();
         assert_eq!(svgs, paths(&["out/x.svg", "out/y.svg", "out/stdin.svg"]));
         assert_eq!(plan.jobs[1].metrics, Some(PathBuf::from("m/y.json")));
@@ -224,9 +224,12 @@ mod tests {
             ),
         ];
         for (inputs, outputs, message) in cases {
-            let err = plan(&inputs, outputs).unwrap_err().to_string();
+            let err = plan(&inputs, &[], outputs).unwrap_err().to_string();
             assert!(err.contains(message), "{inputs:?}: {err}");
         }
+        // A model file the command reads is no output either, whatever its name.
+        let err = plan(&paths(&["a.png"]), &paths(&["m.svg"]), one("m.svg", None)).unwrap_err().to_string();
+        assert!(err.contains("is the input m.svg"), "{err}");
     }
 
     #[test]

@@ -287,10 +287,10 @@ pub struct Job {
     pub tolerance: Option<f32>,
     /// What the regions are filled with. `None` (the default): ramps where they pay
     /// ([`Fills::Auto`]), which draw better than flat fills at equal file size, but flat fills
-    /// when fine-tuning (after F ramps no longer pay for their bytes) and for flat art (a
-    /// picture whose regions filled flat reach [`AutoRule::default`]'s target within its
-    /// `flat_paths`), which ramps drew worse with curves and gained little without. Measured in
-    /// docs/eval/fills.md.
+    /// for flat art (a picture whose regions filled flat reach [`AutoRule::default`]'s target
+    /// within its `flat_paths`), which ramps drew worse with curves and gained little without.
+    /// Measured in docs/eval/fills.md. SuperSVG-F starts from the drawing B makes with the
+    /// same fills, and optimizes its ramps with its outlines.
     pub fills: Option<Fills>,
     /// Crops per network call (at least 1).
     pub batch: usize,
@@ -329,9 +329,22 @@ impl Job {
     pub fn fills_for<E>(&self, flat_art: impl FnOnce() -> Result<bool, E>) -> Result<Fills, E> {
         Ok(match self.fills {
             Some(fills) => fills,
-            None if self.finetune.is_some() || flat_art()? => Fills::Flat,
+            None if flat_art()? => Fills::Flat,
             None => Fills::Auto,
         })
+    }
+
+    /// Whether the mover may run in this job, on some image: it runs where B fills regions with
+    /// ramps ([`Moves::Auto`]), or everywhere ([`Moves::On`]), but never at the paper's
+    /// operating point. A job it cannot run in needs no mover loaded.
+    pub fn may_move(&self) -> bool {
+        let ramps = || self.fills_for(|| Ok::<_, ()>(false)) != Ok(Fills::Flat);
+        self.operating_point != Split::Paper
+            && match self.moves {
+                Moves::Off => false,
+                Moves::On => true,
+                Moves::Auto => ramps(),
+            }
     }
 
     /// Checks every value against its limit and the values against each other; the error
@@ -537,14 +550,18 @@ mod tests {
     }
 
     #[test]
-    fn ramps_are_the_default_but_for_fine_tuning_and_flat_art_and_a_given_fill_is_kept() {
+    fn ramps_are_the_default_but_for_flat_art_with_or_without_fine_tuning_and_a_given_fill_is_kept() {
         let b = Job::default();
         let f = Job { finetune: Some(FinetuneOptions::default()), ..Job::default() };
         let art = |flat: bool| move || Ok::<_, ()>(flat);
-        assert_eq!((b.fills_for(art(false)), b.fills_for(art(true))), (Ok(Fills::Auto), Ok(Fills::Flat)));
+        for job in [&b, &f] {
+            assert_eq!(
+                (job.fills_for(art(false)), job.fills_for(art(true))),
+                (Ok(Fills::Auto), Ok(Fills::Flat))
+            );
+        }
         // Where the answer cannot change the fills, the image is not asked about.
         let unasked = || -> Result<bool, ()> { panic!("asked whether the image is flat art") };
-        assert_eq!(f.fills_for(unasked), Ok(Fills::Flat));
         for fills in [Fills::Flat, Fills::Linear, Fills::Auto] {
             for job in [&b, &f] {
                 assert_eq!(Job { fills: Some(fills), ..job.clone() }.fills_for(unasked), Ok(fills));

@@ -86,8 +86,8 @@ impl ModelSource {
 }
 
 /// One network's identity, for the line that says which models drew: where it comes from,
-/// the checksum its weights are stored with and how it was trained (the trainer's state:
-/// step, config).
+/// the checksum its weights are stored with, whether they were verified against it yet, and
+/// how it was trained (the trainer's state: step, config).
 #[derive(Clone, Debug)]
 pub struct Identity {
     /// Where it was read from.
@@ -95,6 +95,10 @@ pub struct Identity {
     /// [`Checkpoint::weights_checksum`] as stored, which the weights are verified against when
     /// read ("unchecked" for the first format, which has none).
     pub checksum: String,
+    /// Whether the weights were read and verified against their checksums when this identity
+    /// was made (a file is, before any work); otherwise they are the first time a stage uses
+    /// them (a built-in network a job may never run).
+    pub verified: bool,
     /// The trainer's state stored with it, when there is one.
     pub training: Option<String>,
 }
@@ -102,6 +106,11 @@ pub struct Identity {
 impl std::fmt::Display for Identity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{} (weights {}", self.source.name().display(), self.checksum)?;
+        match (self.verified, matches!(self.source, ModelSource::Memory(_)) || self.checksum == "unchecked") {
+            (_, true) => {}
+            (true, false) => write!(f, ", verified")?,
+            (false, false) => write!(f, ", verified when first used")?,
+        }
         if let Some(step) = self.training.as_deref().and_then(training_summary) {
             write!(f, ", {step}")?;
         }
@@ -147,36 +156,46 @@ struct Recipe<M> {
 }
 
 impl<M: Module> Network<M> {
-    /// A network to be read from `source` when first used: `opened` is that checkpoint's
-    /// header, already checked to hold `stage`; the network is built with `config` on `device`.
-    fn deferred(
+    /// The network in `source`: `opened` is that checkpoint's header, already checked to hold
+    /// `stage`; the network is built with `config` on `device`. A file's weights are read and
+    /// verified now, so a damaged file is refused before any work; a built-in network's when
+    /// a stage first uses it ([`Network::get`]), so a job that never runs it never reads it.
+    fn opened(
         source: &ModelSource,
-        opened: &Opened,
+        opened: Opened,
         stage: Stage,
         new: fn(&ModelConfig, &Device) -> M,
         device: &Device,
-    ) -> Self {
+    ) -> Result<Self, CheckpointError> {
+        let eager = matches!(source, ModelSource::File(_));
         let identity = Identity {
             source: source.clone(),
             checksum: opened.checksum.clone().unwrap_or_else(|| "unchecked".into()),
+            verified: eager && opened.checksum.is_some(),
             training: opened.training.clone(),
         };
         let recipe = Recipe { stage, config: opened.model_config.clone(), device: device.clone(), new };
-        Self {
+        // A file is read once, here (a pipe cannot be read twice).
+        let built = match eager {
+            true => OnceLock::from(opened.build(new(&recipe.config, device))?),
+            false => OnceLock::new(),
+        };
+        Ok(Self {
             identity,
-            weights: Arc::new(Weights {
-                built: OnceLock::new(),
-                reading: Mutex::new(()),
-                recipe: Some(recipe),
-            }),
-        }
+            weights: Arc::new(Weights { built, reading: Mutex::new(()), recipe: Some(recipe) }),
+        })
     }
 
     /// A network the caller built in memory (a model in training, a test's), named `name`.
     pub fn in_memory(model: M, name: &'static str) -> Self {
         let built = OnceLock::from(model);
         Self {
-            identity: Identity { source: ModelSource::Memory(name), checksum: "-".into(), training: None },
+            identity: Identity {
+                source: ModelSource::Memory(name),
+                checksum: "-".into(),
+                verified: false,
+                training: None,
+            },
             weights: Arc::new(Weights { built, reading: Mutex::new(()), recipe: None }),
         }
     }
@@ -218,8 +237,12 @@ impl MoverNetwork {
     pub fn load(source: &ModelSource, device: &Device) -> Result<Self, CheckpointError> {
         let file = source.open_mover()?;
         let mover = file.build(device, &source.name())?;
-        let identity =
-            Identity { source: source.clone(), checksum: file.weights_checksum(), training: file.training };
+        let identity = Identity {
+            source: source.clone(),
+            checksum: file.weights_checksum(),
+            verified: true,
+            training: file.training,
+        };
         Ok(Self { identity, mover: Arc::new(mover) })
     }
 }
@@ -263,8 +286,9 @@ impl Models {
     }
 
     /// [`Models::load`] from files or built-in copies. What each checkpoint says about itself
-    /// (its stage, its configuration, the operating point) is read and checked now; the
-    /// weights when a stage first uses them ([`Network::get`]).
+    /// (its stage, its configuration, the operating point) is read and checked now, and a
+    /// file's weights too; a built-in network's weights when a stage first uses them
+    /// ([`Network::get`]).
     pub fn from_sources(
         coarse: &ModelSource,
         refine: Option<&ModelSource>,
@@ -274,7 +298,7 @@ impl Models {
         opened.expect_stage(Stage::Coarse)?;
         let config = opened.model_config.clone();
         let operating_point = opened.inference.unwrap_or_default();
-        let coarse_network = Network::deferred(coarse, &opened, Stage::Coarse, CoarseModel::new, device);
+        let coarse_network = Network::opened(coarse, opened, Stage::Coarse, CoarseModel::new, device)?;
         let refine = match refine {
             None => None,
             Some(source) => {
@@ -286,7 +310,7 @@ impl Models {
                         problem: MismatchProblem::ConfigDiffers(coarse.name()),
                     });
                 }
-                Some(Network::deferred(source, &opened, Stage::Refine, RefineModel::new, device))
+                Some(Network::opened(source, opened, Stage::Refine, RefineModel::new, device)?)
             }
         };
         Ok(Self { coarse: coarse_network, refine, mover: None, config, operating_point })

@@ -14,7 +14,7 @@ use web_time::Instant;
 use burn::tensor::Device;
 use common::Loaded;
 use model::PathOptimizer;
-use raster::to_svg_with;
+use raster::{Decimals, Shape, to_svg_with};
 use serde::Serialize;
 
 use crate::budget::{BudgetPlan, Market};
@@ -98,8 +98,12 @@ pub struct Report {
 /// A job's result: the drawing, its SVG, and the report.
 #[derive(Clone)]
 pub struct Outcome {
-    /// The drawing: paths with their regions and stages, and its exact rendering.
+    /// The drawing: paths with their regions and stages, and its exact rendering, at full
+    /// precision (what SuperSVG-F goes on from).
     pub scene: Scene,
+    /// The drawing as the SVG writes it (its decimals, 8-bit colours: [`Shape::as_written`]),
+    /// and its exact rendering: what the report measures and previews show.
+    pub written: Scene,
     /// The SVG document, at the input's size, one group per region.
     pub svg: String,
     /// What was made and how well it draws.
@@ -239,7 +243,9 @@ struct Drawn {
 }
 
 /// The outcome of `scene`: its SVG at the input's size (one group per region, so editors select
-/// a region's paths together) and its measures on the scene's own canvas.
+/// a region's paths together) and its measures on the exact rendering of the shapes as the SVG
+/// writes them (its decimals, 8-bit colours: [`Shape::as_written`]), so that the report
+/// measures what the file shows.
 fn export(
     scene: Scene,
     image: &Loaded,
@@ -249,9 +255,14 @@ fn export(
 ) -> Result<Outcome, VectorizeError> {
     let clock = Instant::now();
     let (width, height) = image.original;
+    let decimals = Decimals::new(job.svg.decimals);
+    let shapes: Vec<Shape> =
+        scene.scene().iter().map(|shape| shape.as_written([width as f32, height as f32], decimals)).collect();
+    let mut written = scene.clone();
+    written.set_shapes(&shapes);
     let layers: Vec<Option<u32>> = scene.paths().iter().map(|placed| placed.region).collect();
-    let svg = to_svg_with(&scene.scene(), &layers, width, height, &job.svg)?;
-    let canvas = scene.canvas_image();
+    let svg = to_svg_with(&shapes, &layers, width, height, &job.svg)?;
+    let canvas = written.canvas_image();
     let mse = common::mse(&canvas, &image.image);
     let ssim = job.ssim.then(|| common::ssim(&canvas, &image.image));
     let export = clock.elapsed().as_secs_f64();
@@ -284,7 +295,7 @@ fn export(
         svg_bytes: svg.len(),
         seconds,
     };
-    Ok(Outcome { scene, svg, report, warnings })
+    Ok(Outcome { scene, written, svg, report, warnings })
 }
 
 impl Outcome {

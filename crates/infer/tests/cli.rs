@@ -170,29 +170,186 @@ fn model_and_output_problems_are_reported() {
     assert!(text(&result.stderr).contains("no/such/folder/photo.svg"), "{}", text(&result.stderr));
 }
 
-/// A network's weights are read when a stage first uses it: a damaged E_c is refused, by name
-/// and before any SVG is written, by a job that runs it, and costs nothing to one that does not.
+/// A model file named on the command line is read and verified before any work, whether the
+/// job runs it or not: a damaged E_c, E_r or mover is refused by name and no SVG is written; the
+/// models line says which networks were verified and which will be when first used.
 #[test]
-fn damaged_weights_are_refused_when_the_network_is_used() {
+fn damaged_model_files_are_refused_before_any_work() {
     let fixture = Fixture::new("damaged");
-    let coarse = fixture.path("coarse.ckpt");
-    let mut bytes = std::fs::read(&coarse).unwrap();
-    let last = bytes.len() - 3;
-    bytes[last] ^= 1;
-    std::fs::write(&coarse, bytes).unwrap();
     let out = fixture.path("photo.svg");
     let photo = fixture.path("photo.png");
-    let run = |point: &str| {
-        fixture.infer(&[photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--operating-point", point])
+    let mover = fixture.path("mover.ckpt");
+    std::fs::write(&mover, infer::BUILT_IN_MOVER.bytes).unwrap();
+    let run = |extra: &[&str]| {
+        let args = [&[photo.to_str().unwrap(), "-o", out.to_str().unwrap()][..], extra].concat();
+        fixture.infer(&args)
     };
-    let used = run("0.5,0");
-    let stderr = text(&used.stderr);
-    assert_eq!(used.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("coarse.ckpt") && stderr.contains("the file is damaged"), "{stderr}");
-    assert!(!out.exists(), "a partial SVG was left");
-    let unused = run("0,0");
-    assert_eq!(unused.status.code(), Some(0), "{}", text(&unused.stderr));
-    assert!(out.is_file());
+    let whole = run(&["--mover", mover.to_str().unwrap(), "--moves", "off"]);
+    let stderr = text(&whole.stderr);
+    assert!(whole.status.success(), "{stderr}");
+    assert!(stderr.contains("coarse.ckpt (weights") && stderr.contains("verified,"), "{stderr}");
+    assert!(stderr.contains("not used by this job"), "{stderr}");
+    std::fs::remove_file(&out).unwrap();
+    let bundled = Command::new(INFER)
+        .args([photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "20"])
+        .output()
+        .unwrap();
+    assert!(text(&bundled.stderr).contains("verified when first used"), "{}", text(&bundled.stderr));
+    std::fs::remove_file(&out).unwrap();
+
+    for name in ["coarse.ckpt", "refine.ckpt", "mover.ckpt"] {
+        let file = fixture.path(name);
+        let whole = std::fs::read(&file).unwrap();
+        let mut bytes = whole.clone();
+        let last = bytes.len() - 3;
+        bytes[last] ^= 1;
+        std::fs::write(&file, bytes).unwrap();
+        // E_c's share 0, E_r's 0, the mover off: no stage runs the damaged network.
+        let result = run(&["--operating-point", "0,0", "--mover", mover.to_str().unwrap(), "--moves", "off"]);
+        let stderr = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{name}: {stderr}");
+        assert!(stderr.contains(name) && stderr.contains("damaged checkpoint"), "{name}: {stderr}");
+        assert!(!out.exists(), "{name}: an SVG was written");
+        std::fs::write(&file, whole).unwrap();
+    }
+}
+
+/// No output lands on a model file the command reads, whatever its name; a file where an output
+/// folder goes, and an output folder that cannot be written, are said once, in plain words.
+#[test]
+fn outputs_never_land_on_model_files_and_folders_are_said_plainly() {
+    let fixture = Fixture::new("outputs");
+    let photo = fixture.path("photo.png");
+    let p = |name: &str| fixture.path(name).to_str().unwrap().to_string();
+    // A mover's file that happens to end in .svg, given as the mover and as the SVG.
+    std::fs::write(fixture.path("m.svg"), infer::BUILT_IN_MOVER.bytes).unwrap();
+    let result = fixture.infer(&[photo.to_str().unwrap(), "-o", &p("m.svg"), "--mover", &p("m.svg")]);
+    let stderr = text(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("is the input") && stderr.contains("m.svg"), "{stderr}");
+    assert_eq!(std::fs::read(fixture.path("m.svg")).unwrap(), infer::BUILT_IN_MOVER.bytes);
+
+    std::fs::write(fixture.path("plain"), b"a file").unwrap();
+    let result = fixture.infer(&[photo.to_str().unwrap(), "-o", &format!("{}/", p("plain"))]);
+    let stderr = text(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("plain/: is a file, not a folder"), "{stderr}");
+
+    // A folder no one may write in (sysfs), said with the system's reason once.
+    #[cfg(target_os = "linux")]
+    {
+        let result = fixture.infer(&[photo.to_str().unwrap(), "-o", "/sys/x.svg"]);
+        let stderr = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{stderr}");
+        let reason = stderr.rsplit(": ").next().unwrap().trim().to_string();
+        assert!(reason.contains("os error"), "{stderr}");
+        assert_eq!(stderr.matches(&reason).count(), 1, "said more than once: {stderr}");
+    }
+}
+
+/// `--finetune-steps 0` is SuperSVG-F that takes no step: it writes byte for byte what B writes
+/// for the same job (its ramps and the mover's moves kept), on a photo and at `--paths auto`.
+#[test]
+fn no_fine_tuning_step_writes_what_b_writes() {
+    let dir = std::env::temp_dir().join(format!("supersvg-f0-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let photo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/astronaut.jpg");
+    for paths in ["150", "auto"] {
+        let run = |name: &str, extra: &[&str]| {
+            let svg = dir.join(name);
+            let result = Command::new(INFER)
+                .args([
+                    photo.to_str().unwrap(),
+                    "-o",
+                    svg.to_str().unwrap(),
+                    "--size",
+                    "160",
+                    "--paths",
+                    paths,
+                ])
+                .args(extra)
+                .output()
+                .unwrap();
+            assert!(result.status.success(), "{}", text(&result.stderr));
+            std::fs::read(svg).unwrap()
+        };
+        let (b, f) = (run("b.svg", &[]), run("f.svg", &["--finetune-steps", "0"]));
+        assert!(String::from_utf8_lossy(&b).contains("<linearGradient"), "a photo's B has ramps");
+        assert!(b == f, "--paths {paths}: F without a step differs from B");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The report measures what the file shows: with coordinates rounded to whole pixels, its
+/// PSNR is the SVG's as resvg renders it (to the renderers' 8-bit compositing), and a ramp
+/// whose ends round to one point is written flat.
+#[test]
+fn the_report_measures_the_file_at_its_decimals() {
+    let dir = std::env::temp_dir().join(format!("supersvg-decimals-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // The photo at the working size, so the SVG's pixels are the working image's.
+    let astronaut = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/astronaut.jpg");
+    let photo = dir.join("small.png");
+    let small = common::decode::load(&astronaut, 96).unwrap().image;
+    image::DynamicImage::ImageRgb32F(small).to_rgb8().save(&photo).unwrap();
+    let (svg, metrics) = (dir.join("zero.svg"), dir.join("zero.json"));
+    let result = Command::new(INFER)
+        .args([photo.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--metrics", metrics.to_str().unwrap()])
+        .args(["--paths", "auto", "--fills", "linear", "--decimals", "0"])
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+    let image = common::decode::load(&photo, 512).unwrap().image;
+    let (width, height) = image.dimensions();
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(width, height).unwrap();
+    resvg::render(&parse_svg(&svg), resvg::tiny_skia::Transform::identity(), &mut pixmap.as_mut());
+    let drawn = image::Rgb32FImage::from_fn(width, height, |x, y| {
+        let p = pixmap.pixel(x, y).unwrap();
+        Rgb([p.red(), p.green(), p.blue()].map(|c| f32::from(c) / 255.0))
+    });
+    let psnr = common::psnr(&drawn, &image);
+    let reported = report["psnr"].as_f64().unwrap();
+    assert!((psnr - reported).abs() < 0.25, "the file draws {psnr:.2} dB, the report says {reported:.2}");
+    let text = std::fs::read_to_string(&svg).unwrap();
+    for gradient in text.split("<linearGradient").skip(1) {
+        let number = |key: &str| {
+            gradient.split(&format!("{key}=\"")).nth(1).unwrap().split('"').next().unwrap().to_string()
+        };
+        assert!(
+            (number("x1"), number("y1")) != (number("x2"), number("y2")),
+            "a ramp of no length: {gradient}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A `SUPERSVG_MODELS` folder without `mover.ckpt` serves every job that cannot use the mover;
+/// one that would use it is refused, naming the file.
+#[test]
+fn a_models_folder_needs_only_what_the_job_uses() {
+    let fixture = Fixture::new("folder");
+    let photo = fixture.path("photo.png");
+    let out = fixture.path("out.svg");
+    let run = |extra: &[&str]| {
+        Command::new(INFER)
+            .args([photo.to_str().unwrap(), "-o", out.to_str().unwrap(), "--paths", "20"])
+            .args(extra)
+            .env("SUPERSVG_MODELS", fixture.path(""))
+            .output()
+            .unwrap()
+    };
+    for extra in
+        [&["--fills", "flat"][..], &["--moves", "off"], &["--fills", "flat", "--finetune-steps", "2"]]
+    {
+        let result = run(extra);
+        assert!(result.status.success(), "{extra:?}: {}", text(&result.stderr));
+    }
+    let result = run(&["--moves", "on"]);
+    let stderr = text(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("has no mover.ckpt"), "{stderr}");
 }
 
 /// Runs `infer` with `args` (plus the fixture's models) and kills it after `seconds`.

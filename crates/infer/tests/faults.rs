@@ -3,9 +3,10 @@
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::Receiver;
 use std::time::Duration;
 
-use common::testing::wait_within;
+use common::testing::{stderr_lines, wait_within};
 
 mod support;
 
@@ -68,7 +69,18 @@ fn planted_links_are_never_followed() {
     assert_eq!(left.len(), 2, "only the two outputs are new files: {left:?}");
 }
 
+/// Waits (at most a minute) for a line of `lines` that holds `text`.
+fn wait_for(lines: &Receiver<String>, text: &str) {
+    common::testing::wait_for(lines, text, 60);
+}
+
+/// Whatever else `lines` holds, once the program ended.
+fn rest(lines: Receiver<String>) -> String {
+    lines.into_iter().collect::<Vec<_>>().join("\n")
+}
+
 /// Ctrl-C and SIGTERM during a long fine-tune write the best drawing so far and end with 130.
+/// The signal goes once the program says which models it draws with: its work has begun.
 #[test]
 fn a_stopped_fine_tune_writes_its_best_drawing() {
     let fixture = Fixture::new("stop");
@@ -77,11 +89,12 @@ fn a_stopped_fine_tune_writes_its_best_drawing() {
         let photo = fixture.path("photo.png");
         let args =
             [photo.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--paths", "20", "--finetune-secs", "600"];
-        let child = spawn(&fixture, &args);
-        std::thread::sleep(Duration::from_secs(4));
+        let mut child = spawn(&fixture, &args);
+        let lines = stderr_lines(&mut child);
+        wait_for(&lines, "models:");
         signal(&child, name);
         let result = wait_within(child, 60);
-        assert_eq!(result.status.code(), Some(130), "{name}: {}", text(&result.stderr));
+        assert_eq!(result.status.code(), Some(130), "{name}: {}", rest(lines));
         let drawn = std::fs::read_to_string(&svg).unwrap();
         resvg::usvg::Tree::from_str(&drawn, &resvg::usvg::Options::default()).expect("a whole SVG");
         assert!(drawn.matches("<path").count() >= 10, "{name}: {drawn}");
@@ -95,12 +108,149 @@ fn a_stopped_fine_tune_writes_its_best_drawing() {
     .save(&large)
     .unwrap();
     let args = [large.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--size", "1600", "--paths", "8000"];
-    let child = spawn(&fixture, &args);
-    std::thread::sleep(Duration::from_millis(1500));
+    let mut child = spawn(&fixture, &args);
+    let lines = stderr_lines(&mut child);
+    wait_for(&lines, "models:");
     signal(&child, "INT");
     let result = wait_within(child, 60);
-    assert_eq!(result.status.code(), Some(130), "{}", text(&result.stderr));
+    assert_eq!(result.status.code(), Some(130), "{}", rest(lines));
     assert!(!svg.exists());
+}
+
+/// One stop is one stop: `timeout` signals the program and then its process group, so a stop
+/// arrives twice within moments; the second is not "again to abort", and the drawing is
+/// written. Both go once fine-tuning has begun, the second 50 ms after the first, as
+/// `timeout`'s two do (microseconds apart, delivered apart).
+#[test]
+fn one_stop_delivered_twice_still_writes_the_drawing() {
+    let fixture = Fixture::new("twice");
+    // A drawing whose steps and writing take a while, so the second delivery finds the program
+    // still at work.
+    let photo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/astronaut.jpg");
+    for name in ["TERM", "INT"] {
+        let svg = fixture.path(&format!("twice-{name}.svg"));
+        let args = [
+            photo.to_str().unwrap(),
+            "-o",
+            svg.to_str().unwrap(),
+            "--paths",
+            "2000",
+            "--finetune-secs",
+            "600",
+        ];
+        let mut child = spawn(&fixture, &args);
+        let lines = stderr_lines(&mut child);
+        wait_for(&lines, "fine-tuning");
+        let pid = child.id();
+        let twice = format!("kill -{name} {pid}; sleep 0.05; kill -{name} {pid} 2>/dev/null; true");
+        assert!(Command::new("sh").args(["-c", &twice]).status().unwrap().success());
+        let result = wait_within(child, 60);
+        assert_eq!(result.status.code(), Some(130), "{name}: {}", rest(lines));
+        let drawn = std::fs::read_to_string(&svg).unwrap_or_default();
+        assert!(drawn.matches("<path").count() >= 10, "{name}: the drawing was lost: {drawn}");
+    }
+}
+
+/// A stop in a job that fine-tunes, while a picture is still being drawn (a large one, at the
+/// most paths), ends the program within moments: the drawings under way are not waited for
+/// past the grace, nothing partial is left, and the program says so.
+#[test]
+fn a_stop_is_never_held_by_a_long_drawing() {
+    let fixture = Fixture::new("held");
+    let (large, svg) = (fixture.path("larger.png"), fixture.path("held.svg"));
+    image::RgbImage::from_fn(4000, 3000, |x, y| {
+        image::Rgb([(x * 7 % 251) as u8, (y * 13 % 253) as u8, ((x ^ y) % 255) as u8])
+    })
+    .save(&large)
+    .unwrap();
+    let args = [
+        large.to_str().unwrap(),
+        "-o",
+        svg.to_str().unwrap(),
+        "--size",
+        "4000",
+        "--paths",
+        "20000",
+        "--finetune-secs",
+        "600",
+    ];
+    let mut child = spawn(&fixture, &args);
+    let lines = stderr_lines(&mut child);
+    wait_for(&lines, "models:");
+    signal(&child, "TERM");
+    let result = wait_within(child, 60);
+    let said = rest(lines);
+    assert_eq!(result.status.code(), Some(130), "{said}");
+    assert!(said.contains("could not be written in time"), "the drawing ended first: {said}");
+    let left: Vec<_> =
+        std::fs::read_dir(fixture.path("")).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(!svg.exists() && !left.iter().any(|name| name.to_string_lossy().ends_with(".tmp")), "{left:?}");
+}
+
+/// stderr gone (closed after a line, or a full device) never ends the work: every SVG is
+/// written and the status says the run went well.
+#[test]
+fn a_closed_or_full_stderr_never_stops_the_work() {
+    let fixture = Fixture::new("stderr");
+    let photo = fixture.path("photo.png");
+    let inputs: Vec<String> = (0..6)
+        .map(|i| {
+            let copy = fixture.path(&format!("copy-{i}.png"));
+            std::fs::copy(&photo, &copy).unwrap();
+            copy.to_str().unwrap().to_string()
+        })
+        .collect();
+    let out = fixture.path("out/");
+    let mut args: Vec<&str> = inputs.iter().map(String::as_str).collect();
+    args.extend(["-o", out.to_str().unwrap(), "--paths", "20", "--finetune-steps", "5"]);
+    let mut child = spawn(&fixture, &args);
+    let lines = stderr_lines(&mut child);
+    wait_for(&lines, "models:");
+    drop(lines);
+    let result = wait_within(child, 120);
+    assert!(result.status.success(), "{:?}", result.status);
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 6);
+
+    let svg = fixture.path("full.svg");
+    let result = Command::new(INFER)
+        .args([photo.to_str().unwrap(), "-o", svg.to_str().unwrap(), "--paths", "20"])
+        .args(["--coarse", fixture.path("coarse.ckpt").to_str().unwrap(), "--no-refine"])
+        .stderr(std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap())
+        .status()
+        .unwrap();
+    assert!(result.success(), "{result:?}");
+    assert!(svg.exists());
+}
+
+/// A named pipe that no program writes to, as the image or as a model, is refused at once as
+/// an empty stream; a model given through a pipe (`<(cat coarse.ckpt)`) is read whole.
+#[cfg(unix)]
+#[test]
+fn pipes_are_read_whole_and_never_waited_on() {
+    let fixture = Fixture::new("fifo");
+    let fifo = fixture.path("fifo");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let (photo, svg) = (fixture.path("photo.png"), fixture.path("fifo.svg"));
+    let (p, f, s) = (photo.to_str().unwrap(), fifo.to_str().unwrap(), svg.to_str().unwrap());
+    for args in [vec![f, "-o", s], vec![p, "-o", s, "--coarse", f], vec![p, "-o", s, "--mover", f]] {
+        let child = Command::new(INFER).args(&args).stderr(Stdio::piped()).spawn().unwrap();
+        let result = wait_within(child, 60);
+        let stderr = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains("fifo") && stderr.contains("no program writes to"), "{args:?}: {stderr}");
+    }
+    let coarse = std::fs::read(fixture.path("coarse.ckpt")).unwrap();
+    let mut child = Command::new(INFER)
+        .args([p, "-o", s, "--paths", "20", "--coarse", "/dev/stdin", "--no-refine"])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    std::thread::spawn(move || std::io::Write::write_all(&mut stdin, &coarse));
+    let result = wait_within(child, 60);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    assert!(text(&result.stderr).contains("coarse /dev/stdin (weights"), "{}", text(&result.stderr));
 }
 
 /// Peak resident memory of `child` in kB, sampled until it exits (VmHWM only grows), and how

@@ -65,8 +65,8 @@ fn stays_within_the_budget_and_reports_what_it_drew() {
         assert_eq!(report.paths_by_stage.background, 1);
         assert_eq!((report.svg_bytes, report.width, report.working_width), (svg.len(), 96, 96));
         assert!(svg.contains("viewBox=\"0 0 96 64\""));
-        // The report measures the scene's own canvas.
-        let drawn = common::psnr(&outcome.scene.canvas_image(), &image.image);
+        // The report measures the drawing as the SVG writes it.
+        let drawn = common::psnr(&outcome.written.canvas_image(), &image.image);
         assert!((report.psnr - drawn).abs() < 1e-9 && report.psnr > 10.0, "{} vs {drawn}", report.psnr);
         let seconds = report.seconds;
         let parts = seconds.decode
@@ -156,8 +156,10 @@ fn the_report_tallies_what_e_r_proposed_and_kept() {
     let regions = Some(outcome.report.regions);
     let before = run(&models(false), &image, &Job { regions, ..split.clone() }, &device).unwrap().report;
     assert_eq!(before.paths_by_stage.refine, 0);
+    // The report measures the files (the shapes as written), the tally the drawing as the stage
+    // left it: they agree to the rounding.
     let gained = outcome.report.psnr - before.psnr;
-    assert!(gained > 0.0 && (tally.gain_db - gained).abs() < 1e-6, "{tally:?}: {gained} dB");
+    assert!(gained > 0.0 && (tally.gain_db - gained).abs() < 0.05, "{tally:?}: {gained} dB");
     assert_eq!(run(&models(false), &image, &split, &device).unwrap().report.refinement, Default::default());
 }
 
@@ -291,7 +293,8 @@ fn the_mover_runs_where_the_job_says_and_keeps_only_a_better_drawing() {
             moved.seconds.moves >= tally.network_seconds && moved.seconds.networks >= tally.network_seconds
         );
         match tally.kept {
-            true => assert!((moved.psnr - before.psnr - tally.gain_db).abs() < 1e-6, "{tally:?}"),
+            // The report measures the files, the tally the drawings: they agree to the rounding.
+            true => assert!((moved.psnr - before.psnr - tally.gain_db).abs() < 0.05, "{tally:?}"),
             false => {
                 assert_eq!((moved.psnr, moved.svg_bytes, tally.gain_db), (before.psnr, before.svg_bytes, 0.0))
             }

@@ -23,6 +23,8 @@ use burn::store::RecordError;
 use burn::tensor::kind::Basic;
 use burn::tensor::{AllocationProperty, Bool, Bytes, DType, Device, Float, Int, Shape, Tensor, TensorData};
 use burn_pack::{Reader, Writer};
+use common::fingerprint::Fnv;
+use common::readable::{self, Readable, StreamError};
 use half::f16;
 use half::slice::HalfFloatSliceExt;
 use rayon::prelude::*;
@@ -117,8 +119,16 @@ pub enum CheckpointError {
         /// The file system's reason.
         source: std::io::Error,
     },
+    /// The file (or the stream: a pipe, `<(…)`) could not be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// Why.
+        source: StreamError,
+    },
     /// The file is not a supersvg checkpoint, or its contents are damaged.
-    #[error("{path}: not a supersvg checkpoint ({problem})")]
+    #[error("{path}: {}", format_problem(problem))]
     Format {
         /// The checkpoint file.
         path: PathBuf,
@@ -179,9 +189,7 @@ pub enum FormatProblem {
     #[error("no model weights")]
     NoWeights,
     /// The weights are not the ones written: damaged on disk or in transfer.
-    #[error(
-        "the weights do not match their checksum (stored {stored}, computed {computed}): the file is damaged"
-    )]
+    #[error("the weights do not match their checksum (stored {stored}, computed {computed})")]
     Checksum {
         /// The checksum in the metadata.
         stored: String,
@@ -189,9 +197,7 @@ pub enum FormatProblem {
         computed: String,
     },
     /// The stage, configuration, trainer's state or optimizer state are not the ones written.
-    #[error(
-        "the training state does not match its checksum (stored {stored}, computed {computed}): the file is damaged"
-    )]
+    #[error("the training state does not match its checksum (stored {stored}, computed {computed})")]
     StateChecksum {
         /// The checksum in the metadata.
         stored: String,
@@ -201,6 +207,19 @@ pub enum FormatProblem {
     /// A weight is NaN or infinite: the model was saved from a diverged training.
     #[error("weight `{0}` holds a NaN or an infinity")]
     NonFinite(String),
+}
+
+/// How [`CheckpointError::Format`] says its problem: a checkpoint whose checksums or values do
+/// not hold is damaged; anything else is not a checkpoint of ours.
+fn format_problem(problem: &FormatProblem) -> String {
+    match problem {
+        FormatProblem::Checksum { .. }
+        | FormatProblem::StateChecksum { .. }
+        | FormatProblem::NonFinite(_) => {
+            format!("a damaged checkpoint: {problem}")
+        }
+        _ => format!("not a supersvg checkpoint ({problem})"),
+    }
 }
 
 /// Why stored weights cannot be applied to a model.
@@ -279,15 +298,8 @@ impl Checkpoint {
     /// Opens the checkpoint at `path`: what it says about itself, read and checked now, and
     /// its weights, read when a network is built from them ([`Opened::build`]).
     pub fn open(path: &Path) -> Result<Opened, CheckpointError> {
-        if path.is_dir() {
-            return Err(CheckpointError::Folder { path: path.to_path_buf() });
-        }
-        if !path.exists() {
-            return Err(CheckpointError::Missing { path: path.to_path_buf() });
-        }
-        Reader::from_file(path)
-            .map_err(FormatProblem::from)
-            .and_then(|reader| Opened::new(reader, path))
+        let reader = reader_of(path)?;
+        Opened::new(reader, path)
             .map_err(|problem| CheckpointError::Format { path: path.to_path_buf(), problem })
     }
 
@@ -329,6 +341,33 @@ impl Checkpoint {
         let weights = entries(&self.model)
             .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
         apply(model, weights.iter().map(Entry::to_f32).collect(), path)
+    }
+}
+
+/// The most bytes of a checkpoint read from a stream (a pipe, `<(…)`), which is read whole
+/// first: the paper preset's training checkpoint, Adam's moments included, is about a quarter
+/// of it.
+pub const MAX_STREAMED_CHECKPOINT: u64 = 1 << 30;
+
+/// The container at `path`: a regular file read where it lies, anything else that can be read
+/// (a pipe, `<(…)`, a device) read whole first, at most [`MAX_STREAMED_CHECKPOINT`] bytes,
+/// without waiting on a pipe no program writes to.
+fn reader_of(path: &Path) -> Result<Reader, CheckpointError> {
+    let fail = |problem: FormatProblem| CheckpointError::Format { path: path.to_path_buf(), problem };
+    let read = |source: StreamError| CheckpointError::Read { path: path.to_path_buf(), source };
+    match readable::open(path) {
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => {
+            Err(CheckpointError::Missing { path: path.to_path_buf() })
+        }
+        Err(err) if err.kind() == std::io::ErrorKind::IsADirectory => {
+            Err(CheckpointError::Folder { path: path.to_path_buf() })
+        }
+        Err(err) => Err(read(err.into())),
+        Ok(Readable::File(_)) => Reader::from_file_exact(path).map_err(|e| fail(e.into())),
+        Ok(Readable::Stream(stream)) => {
+            let bytes = readable::read_whole(stream, MAX_STREAMED_CHECKPOINT).map_err(read)?;
+            Reader::from_bytes(Bytes::from_bytes_vec(bytes)).map_err(|e| fail(e.into()))
+        }
     }
 }
 
@@ -664,17 +703,10 @@ impl MoverCheckpoint {
         write(path, &header, &self.model, self.optimizer.as_ref())
     }
 
-    /// Reads the mover's file at `path`, checked against its checksums.
+    /// Reads the mover's file at `path` (or a stream: [`Checkpoint::open`]), checked against
+    /// its checksums.
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
-        if path.is_dir() {
-            return Err(CheckpointError::Folder { path: path.to_path_buf() });
-        }
-        if !path.exists() {
-            return Err(CheckpointError::Missing { path: path.to_path_buf() });
-        }
-        let reader = Reader::from_file(path)
-            .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
-        Self::read(reader, path)
+        Self::read(reader_of(path)?, path)
     }
 
     /// [`MoverCheckpoint::load`] of a file built into the program; `name` stands for it in errors.
@@ -792,25 +824,6 @@ fn convert(bytes: &Bytes, dtype: DType) -> Result<Bytes, burn_pack::Error> {
     pack(entries(bytes)?.into_iter().map(|entry| entry.in_dtype(dtype)).collect())
 }
 
-/// FNV-1a, 64 bits: what a flipped bit anywhere in what it is fed changes.
-struct Fnv(u64);
-
-impl Fnv {
-    fn new() -> Self {
-        Self(0xcbf2_9ce4_8422_2325)
-    }
-
-    fn feed(&mut self, bytes: &[u8]) {
-        for &byte in bytes {
-            self.0 = (self.0 ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    }
-
-    fn finish(&self) -> String {
-        format!("{:016x}", self.0)
-    }
-}
-
 /// [`Fnv`] over each tensor's name, dtype, shape and bytes, in order.
 fn checksum<'a>(tensors: impl Iterator<Item = (&'a str, &'a TensorData)>) -> String {
     let mut hash = Fnv::new();
@@ -846,10 +859,7 @@ fn state_checksum(state: State) -> String {
     for (tag, part) in parts {
         hash.feed(tag.as_bytes());
         match part {
-            Some(bytes) => {
-                hash.feed(&(bytes.len() as u64).to_le_bytes());
-                hash.feed(bytes);
-            }
+            Some(bytes) => hash.feed_part(bytes),
             None => hash.feed(b"none"),
         }
     }

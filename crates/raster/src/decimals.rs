@@ -32,6 +32,11 @@ impl Decimals {
         (value as f64 * self.scale).round_ties_even() as i64
     }
 
+    /// `value` rounded as it is written: whole ticks, as a number again.
+    pub fn rounded(self, value: f32) -> f32 {
+        (self.ticks(value) as f64 / self.scale) as f32
+    }
+
     /// Writes `ticks` as a number with no trailing zeros (`12`, `3.5`, `-0.25`); `short` leaves
     /// out the zero before the point (`.5`, `-.25`), as path data allows.
     pub fn write(self, out: &mut String, ticks: i64, short: bool) {

@@ -3,6 +3,8 @@
 //! shape where one colour would need many shapes to band it.
 
 use common::Ramp;
+
+use crate::decimals::Decimals;
 use tiny_skia::{Color, GradientStop, LinearGradient, Point, Shader, SpreadMode, Transform};
 
 /// Parameters of a [`Ramp`] as fine-tuning moves it: `start`, `end` (unit square), then the two
@@ -41,6 +43,28 @@ impl Fill {
         match self {
             Fill::Solid(color) => *color,
             Fill::Linear(ramp) => ramp.middle(),
+        }
+    }
+
+    /// The fill as an SVG of a canvas of `size` = (width, height) pixels writes it with
+    /// `decimals` ([`crate::to_svg_with`]): colours in 8 bits, a ramp's ends rounded. A ramp
+    /// whose ends round to one point, which SVG would paint in its last stop alone, is written
+    /// flat, in its middle colour.
+    pub fn as_written(&self, [sx, sy]: [f32; 2], decimals: Decimals) -> Fill {
+        match self {
+            Fill::Solid(color) => Fill::Solid(color.map(in_8_bits)),
+            Fill::Linear(ramp) => {
+                let ticks = |[x, y]: [f32; 2]| [decimals.ticks(x * sx), decimals.ticks(y * sy)];
+                if ticks(ramp.start) == ticks(ramp.end) {
+                    return Fill::Solid(ramp.middle().map(in_8_bits));
+                }
+                let point = |[x, y]: [f32; 2]| [decimals.rounded(x * sx) / sx, decimals.rounded(y * sy) / sy];
+                Fill::Linear(Ramp {
+                    start: point(ramp.start),
+                    end: point(ramp.end),
+                    stops: ramp.stops.map(|stop| stop.map(in_8_bits)),
+                })
+            }
         }
     }
 
@@ -83,6 +107,16 @@ impl Fill {
             }
         }
     }
+}
+
+/// A colour channel in [0, 1] as `#rrggbb` writes it: clamped, in 255ths.
+pub(crate) fn in_8_bits(channel: f32) -> f32 {
+    f32::from(to_8_bits(channel)) / 255.0
+}
+
+/// A colour channel in [0, 1] as one byte of `#rrggbb` (clamped, rounded).
+pub(crate) fn to_8_bits(channel: f32) -> u8 {
+    (channel.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
 impl From<[f32; 3]> for Fill {

@@ -586,6 +586,29 @@ impl Shape {
         }
     }
 
+    /// The shape as an SVG of a canvas of `size` = (width, height) pixels writes it with
+    /// `decimals` ([`crate::to_svg_with`]): every point rounded as written, the fill as
+    /// [`Fill::as_written`], the opacity as `fill-opacity` writes it. What a measure of the
+    /// drawing renders to score what the file shows.
+    pub fn as_written(&self, [sx, sy]: [f32; 2], decimals: Decimals) -> Shape {
+        let point = |[x, y]: [f32; 2]| [decimals.rounded(x * sx) / sx, decimals.rounded(y * sy) / sy];
+        let alpha = |alpha: f32| if alpha >= 1.0 { alpha } else { decimals.rounded(alpha) };
+        let fill = self.fill().as_written([sx, sy], decimals);
+        match self {
+            Shape::Path(path) => Shape::Path(Path {
+                points: path.points.map(point),
+                color: fill.color(),
+                alpha: alpha(path.alpha),
+            }),
+            Shape::Outline(outline) => {
+                let points: Vec<[f32; 2]> = outline.points().into_iter().map(point).collect();
+                let mut written = outline.with_points(&points);
+                (written.fill, written.alpha) = (fill, alpha(outline.alpha));
+                written.into()
+            }
+        }
+    }
+
     fn filled(&self) -> &dyn Filled {
         match self {
             Shape::Path(path) => path,

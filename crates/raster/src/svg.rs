@@ -4,7 +4,7 @@
 use std::fmt::Write;
 
 use crate::decimals::{Decimals, MAX_DECIMALS};
-use crate::fill::Fill;
+use crate::fill::{Fill, to_8_bits};
 use crate::shape::Filled;
 
 /// Why a set of paths cannot be written as SVG.
@@ -90,9 +90,11 @@ pub fn to_svg_with<F: Filled>(
         return Err(SvgError::NonFinite { index });
     }
     let visible = |path: &&F| path.alpha() > 0.0;
+    // A ramp whose ends round to one point is written flat ([`Fill::as_written`]).
+    let written = |path: &F| path.fill().as_written([sx, sy], decimals);
     let mut ramps = 0;
     for path in paths.iter().filter(visible) {
-        if let Fill::Linear(ramp) = path.fill() {
+        if let Fill::Linear(ramp) = written(path) {
             if ramps == 0 {
                 svg.push_str("<defs>\n");
             }
@@ -132,7 +134,7 @@ pub fn to_svg_with<F: Filled>(
         }
         svg.push_str("<path d=\"");
         path.svg_data([sx, sy], decimals, &mut svg);
-        match path.fill() {
+        match written(path) {
             Fill::Solid(color) => {
                 let _ = write!(svg, "\" fill=\"{}\"", hex(color));
             }
@@ -169,7 +171,7 @@ fn gradient_id(mut index: usize) -> String {
 
 /// `#rrggbb` of a colour in [0, 1] (clamped).
 fn hex(color: [f32; 3]) -> String {
-    let [r, g, b] = color.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+    let [r, g, b] = color.map(to_8_bits);
     format!("#{r:02x}{g:02x}{b:02x}")
 }
 

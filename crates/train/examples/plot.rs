@@ -68,10 +68,15 @@ fn read(run: &PathBuf) -> Result<Curve, String> {
 
 fn main() {
     let args = Args::parse();
+    let inputs: Vec<PathBuf> = args.runs.iter().map(|run| run.join("metrics.jsonl")).collect();
+    if let Err(err) = common::outputs::check_output(&args.output, &inputs) {
+        common::say!("plot: {err}");
+        std::process::exit(1);
+    }
     let curves: Vec<Curve> = match args.runs.iter().map(read).collect() {
         Ok(curves) => curves,
         Err(message) => {
-            eprintln!("plot: {message}");
+            common::say!("plot: {message}");
             std::process::exit(1);
         }
     };
@@ -105,8 +110,8 @@ fn main() {
             (", regions", |p: &InferencePoint| (p.0, p.2)),
         ));
     }
-    if let Err(err) = std::fs::write(&args.output, chart::svg(&panels)) {
-        eprintln!("plot: {}: {err}", args.output.display());
+    if let Err(err) = common::write::write_atomic(&args.output, chart::svg(&panels).as_bytes()) {
+        common::say!("plot: {}: {err}", args.output.display());
         std::process::exit(1);
     }
 }

@@ -14,7 +14,8 @@
 //! at each of `data.paths`: `at_inference`, a budget each (`paths`, `gain_db`: the mean PSNR gain
 //! over B, a rejected move counting 0, `kept` of `images`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
 use clap::Parser;
 use model::{Checkpoint, CheckpointError, CropBatch, MoverCheckpoint, Stage, load_coarse, load_refine};
@@ -35,15 +36,64 @@ struct Args {
     checkpoints: Vec<PathBuf>,
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args = Args::parse();
-    let device = burn::tensor::Device::flex();
-    match MoverCheckpoint::load(&args.checkpoints[0]) {
-        Ok(_) => return validate_movers(&args, &device),
-        Err(CheckpointError::WrongStage { .. }) => {}
-        Err(err) => return Err(err.into()),
+fn main() -> ExitCode {
+    match validate(&Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            common::say!("error: {}", common::say::chain(err.as_ref()));
+            ExitCode::FAILURE
+        }
     }
-    let stage = Checkpoint::load(&args.checkpoints[0])?.stage;
+}
+
+/// What a checkpoint file holds, for scoring it the way its kind is used.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Mover,
+    Network(Stage),
+}
+
+impl Kind {
+    /// The kind of the checkpoint at `path`, read and verified.
+    fn of(path: &Path) -> Result<Self, CheckpointError> {
+        match MoverCheckpoint::load(path) {
+            Ok(_) => Ok(Kind::Mover),
+            Err(CheckpointError::WrongStage { .. }) => Ok(Kind::Network(Checkpoint::load(path)?.stage)),
+            Err(err) => Err(err),
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Mover => "a mover's file",
+            Kind::Network(stage) => match stage {
+                Stage::Coarse => "a coarse checkpoint",
+                Stage::Refine => "a refinement checkpoint",
+            },
+        }
+    }
+}
+
+fn validate(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
+    let device = burn::tensor::Device::flex();
+    let first = Kind::of(&args.checkpoints[0])?;
+    for path in &args.checkpoints[1..] {
+        let kind = Kind::of(path)?;
+        if kind != first {
+            return Err(format!(
+                "{} is {} and {} {}: give checkpoints of one kind",
+                args.checkpoints[0].display(),
+                first.name(),
+                path.display(),
+                kind.name()
+            )
+            .into());
+        }
+    }
+    let stage = match first {
+        Kind::Mover => return validate_movers(args, &device),
+        Kind::Network(stage) => stage,
+    };
     match stage {
         Stage::Coarse => {
             let config: CoarseConfig = config::load(&args.config)?;
@@ -91,8 +141,8 @@ fn validate_movers(args: &Args, device: &burn::tensor::Device) -> Result<(), Box
     Ok(())
 }
 
-/// One line: the scores with the checkpoint's path.
-fn print(path: &std::path::Path, mut line: serde_json::Value) {
+/// One line on stdout: the scores with the checkpoint's path.
+fn print(path: &Path, mut line: serde_json::Value) {
     line["checkpoint"] = path.display().to_string().into();
-    println!("{line}");
+    common::say::out(format_args!("{line}"));
 }

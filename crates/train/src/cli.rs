@@ -47,7 +47,7 @@ pub fn finish(result: Result<Summary, Box<dyn std::error::Error>>) -> std::proce
     use std::process::ExitCode;
     match result {
         Ok(summary) => {
-            eprintln!(
+            common::say!(
                 "done: {} steps, final loss {:.5}, {:.0} s of training; checkpoint {}",
                 summary.steps,
                 summary.final_loss,
@@ -57,7 +57,7 @@ pub fn finish(result: Result<Summary, Box<dyn std::error::Error>>) -> std::proce
             ExitCode::SUCCESS
         }
         Err(err) => {
-            eprintln!("error: {err}");
+            common::say!("error: {}", common::say::chain(err.as_ref()));
             let interrupted =
                 err.downcast_ref::<TrainError>().is_some_and(|e| {
                     matches!(e, TrainError::Interrupted { .. } | TrainError::Data(DataError::Interrupted(_)))
@@ -81,6 +81,17 @@ impl<'a> Launch<'a> {
         catch_interrupts();
         let dir = args.out.clone().unwrap_or_else(|| PathBuf::from("runs").join(stage));
         Ok(Self { args, dir, device: args.backend.autodiff_device()? })
+    }
+
+    /// Refuses a run whose checkpoint or metrics would land on one of `inputs` (its config,
+    /// `--init`, `--weights`), by any name.
+    fn refuse_inputs<O: Objective>(&self, inputs: &[Option<&PathBuf>]) -> Result<(), Box<dyn Error>> {
+        let inputs: Vec<&PathBuf> =
+            std::iter::once(&self.args.config).chain(inputs.iter().flatten().copied()).collect();
+        for output in [checkpoint_path::<O>(&self.dir), self.dir.join("metrics.jsonl")] {
+            common::outputs::check_not_input(&output, &inputs)?;
+        }
+        Ok(())
     }
 
     /// The model to start from: the checkpoint in the folder with `--resume`, else `fresh`.
@@ -111,6 +122,7 @@ impl<'a> Launch<'a> {
 /// `train-coarse`: E_c from a random start, or from `init`'s weights (fine-tuning).
 pub fn train_coarse(args: &CommonArgs, init: Option<PathBuf>) -> Result<Summary, Box<dyn Error>> {
     let launch = Launch::new(args, "coarse")?;
+    launch.refuse_inputs::<CoarseObjective>(&[init.as_ref()])?;
     let mut config: CoarseConfig = config::load(&args.config)?;
     config.train.steps = args.steps.unwrap_or(config.train.steps);
     let init = match init {
@@ -143,6 +155,7 @@ pub fn train_refine(
     weights: Option<PathBuf>,
 ) -> Result<Summary, Box<dyn Error>> {
     let launch = Launch::new(args, "refine")?;
+    launch.refuse_inputs::<RefineObjective>(&[Some(&init), weights.as_ref()])?;
     let mut config: RefineConfig = config::load(&args.config)?;
     config.train.steps = args.steps.unwrap_or(config.train.steps);
     let (teacher, coarse_config) = load_coarse(&init, &launch.device)?;

@@ -124,6 +124,10 @@ impl RefineCheck {
             RefineScores { proposed: 0, kept: 0, gain_db: 0.0, regions_db: 0.0, optimizer_db: 0.0 };
         let model = Network::in_memory(model.clone(), "the model in training");
         for case in &self.cases {
+            // A stop cuts the scoring short; the trainer then records none of it.
+            if crate::stop::interrupted() {
+                break;
+            }
             let mut scene = case.scene.clone();
             let budget = scene.len() + case.extra;
             let context = Context { config: &self.config, batch: BATCH, device };
@@ -208,6 +212,10 @@ impl CoarseCheck {
         };
         let mut scores = CoarseScores { bought: 0, psnr_b: 0.0, psnr_regions: 0.0 };
         for (image, budget, psnr_regions) in &self.images {
+            // A stop cuts the scoring short; the trainer then records none of it.
+            if crate::stop::interrupted() {
+                break;
+            }
             let job = Job {
                 paths: PathBudget::Count(*budget),
                 operating_point: Split::Point(self.point),

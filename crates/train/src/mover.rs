@@ -16,6 +16,9 @@ use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor, TensorData};
 use common::PixelBox;
 use common::decode::load;
+use common::fingerprint::Fnv;
+use common::outputs::{OutputError, check_not_input, create_folder, lock_folder};
+use common::say;
 use common::write::write_atomic;
 use image::Rgb32FImage;
 use infer::stages::move_outlines;
@@ -28,7 +31,7 @@ use raster::{Fill, FlatAdam, Outline, Window};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::stop::{catch_interrupts, interrupted};
+use crate::stop::{catch_interrupts, heard, interrupted};
 
 /// `train-mover`'s configuration (`configs/mover.toml`); unknown keys are refused.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -112,6 +115,10 @@ pub enum MoverError {
         /// What went wrong.
         problem: String,
     },
+    /// An image of `data.images` or `[validation]` is missing, or a held-out image is one of
+    /// the training images.
+    #[error("{0}")]
+    Images(String),
     /// A samples file or the run's folder could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -120,9 +127,33 @@ pub enum MoverError {
         /// The reason.
         source: std::io::Error,
     },
-    /// A samples file is not a whole number of samples.
-    #[error("{0}: not a samples file (damaged?): delete it and the run makes it again")]
+    /// A samples file is not a whole number of samples, or holds a NaN or an infinity.
+    #[error(
+        "{0}: not a samples file, or one with a NaN or an infinity (damaged?): delete it and the run makes it again"
+    )]
     Samples(PathBuf),
+    /// The teacher made no sample: nothing in `data.images` to move.
+    #[error("the teacher found no point to move in data.images (flat pictures?): nothing to train on")]
+    NoSamples,
+    /// A loss or a held-out error became NaN or infinite.
+    #[error(
+        "the loss became {value} at step {step} (train.learning_rate = {learning_rate}); stopped, {}",
+        kept(.checkpoint)
+    )]
+    NonFinite {
+        /// The loss.
+        value: f64,
+        /// The step it happened at (1-based).
+        step: usize,
+        /// The learning rate the run used.
+        learning_rate: f64,
+        /// The checkpoint left in place, when one was written (or resumed from).
+        checkpoint: Option<PathBuf>,
+    },
+    /// The output folder cannot be used (a file in its place, another run writing to it) or an
+    /// output would land on an input.
+    #[error(transparent)]
+    Output(#[from] OutputError),
     /// The checkpoint could not be written or read back.
     #[error(transparent)]
     Checkpoint(#[from] model::CheckpointError),
@@ -137,6 +168,24 @@ pub enum MoverError {
     /// A finished or stopped run's folder, not resumed or overwritten.
     #[error("{0} exists: pass --resume to continue it or --overwrite to start afresh")]
     Exists(PathBuf),
+    /// A stop (Ctrl-C, SIGTERM) cut the drawing of the `[validation]` images short.
+    #[error("interrupted while drawing the validation images")]
+    Stopped,
+    /// The run was stopped (Ctrl-C, SIGTERM) before training began: the teacher's samples made
+    /// so far are kept, and running the same command again goes on from there.
+    #[error(
+        "interrupted before training began ({made} of {total} drawings' samples stored in {}); \
+         run the same command again to go on from there",
+        .folder.display()
+    )]
+    InterruptedBefore {
+        /// Drawings whose samples are stored.
+        made: usize,
+        /// Drawings the run needs.
+        total: usize,
+        /// Where they are.
+        folder: PathBuf,
+    },
     /// The run was stopped (Ctrl-C, SIGTERM); the checkpoint holds what was done.
     #[error("interrupted in epoch {epoch}, after step {step}; --resume continues from {}", .checkpoint.display())]
     Interrupted {
@@ -149,37 +198,96 @@ pub enum MoverError {
     },
 }
 
+/// The most Adam steps the teacher takes on an outline.
+pub const MAX_TEACHER_STEPS: usize = 10_000;
+/// The widest pad around an outline's box (pixels).
+pub const MAX_TEACHER_PAD: u32 = 256;
+/// The most epochs of a run.
+pub const MAX_EPOCHS: usize = 100_000;
+/// The most samples a step.
+pub const MAX_BATCH: usize = 1 << 16;
+
 impl MoverConfig {
-    /// The configuration in `path`, checked.
+    /// The configuration in `path`, checked: every value within its range.
     pub fn load(path: &Path) -> Result<Self, MoverError> {
         let problem = |problem: String| MoverError::Config { path: path.to_path_buf(), problem };
         let text = std::fs::read_to_string(path).map_err(|e| problem(e.to_string()))?;
         let config: Self = toml::from_str(&text).map_err(|e| problem(e.to_string()))?;
+        config.check().map_err(problem)?;
+        Ok(config)
+    }
+
+    /// Every image there, and no `[validation]` image one of `data.images` by its contents,
+    /// whatever its name: what a run checks before any work.
+    pub fn check_images(&self) -> Result<(), MoverError> {
+        let problem = MoverError::Images;
+        let held = self.validation.as_ref().map_or(&[][..], |v| &v.images[..]);
+        let read = |key: &str, image: &PathBuf| {
+            std::fs::read(image).map_err(|err| problem(format!("{key}: {}: {err}", image.display())))
+        };
+        let mut seen = std::collections::HashMap::new();
+        for image in &self.data.images {
+            seen.insert(fingerprint(&read("data.images", image)?), image);
+        }
+        for image in held {
+            if let Some(twin) = seen.get(&fingerprint(&read("validation.images", image)?)) {
+                return Err(problem(format!(
+                    "validation.images: {} is the image {} of data.images (held-out images must be others)",
+                    image.display(),
+                    twin.display()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The first value out of range.
+    fn check(&self) -> Result<(), String> {
+        let (data, teacher, train) = (&self.data, &self.teacher, &self.train);
         let checks = [
-            (config.data.images.is_empty(), "data.images is empty"),
+            (data.images.is_empty(), "data.images is empty".to_string()),
             (
-                config.data.paths.iter().any(|&p| !(infer::MIN_PATHS..=infer::MAX_PATHS).contains(&p)),
-                "data.paths",
+                data.paths.iter().any(|&p| !(infer::MIN_PATHS..=infer::MAX_PATHS).contains(&p)),
+                format!("data.paths: each from {} to {}", infer::MIN_PATHS, infer::MAX_PATHS),
             ),
-            (config.data.paths.is_empty(), "data.paths is empty"),
-            (!(16..=8192).contains(&config.data.size), "data.size: 16 to 8192"),
-            (config.train.batch == 0, "train.batch: at least 1"),
-            (config.train.epochs == 0, "train.epochs: at least 1"),
-            (!(config.train.learning_rate > 0.0), "train.learning_rate: above 0"),
-            (!(0.0..0.5).contains(&config.train.held_out), "train.held_out: from 0 to below 0.5"),
-            (config.validation.as_ref().is_some_and(|v| v.images.is_empty()), "validation.images is empty"),
+            (data.paths.is_empty(), "data.paths is empty".into()),
+            (!common::WORKING_SIZES.contains(&data.size), "data.size: 16 to 8192".into()),
             (
-                config.validation.as_ref().is_some_and(|v| {
-                    let name = |path: &PathBuf| path.file_name().map(|n| n.to_os_string());
-                    v.images.iter().any(|held| config.data.images.iter().any(|seen| name(held) == name(seen)))
-                }),
-                "validation.images: an image of data.images (held-out images must be others)",
+                !(1..=MAX_TEACHER_STEPS).contains(&teacher.steps),
+                format!("teacher.steps: 1 to {MAX_TEACHER_STEPS}"),
+            ),
+            (teacher.pad > MAX_TEACHER_PAD, format!("teacher.pad: at most {MAX_TEACHER_PAD}")),
+            (!(1..=MAX_BATCH).contains(&train.batch), format!("train.batch: 1 to {MAX_BATCH}")),
+            (!(1..=MAX_EPOCHS).contains(&train.epochs), format!("train.epochs: 1 to {MAX_EPOCHS}")),
+            (
+                !(train.learning_rate > 0.0 && train.learning_rate <= 1.0),
+                "train.learning_rate: above 0, at most 1".into(),
+            ),
+            (!(0.0..0.5).contains(&train.held_out), "train.held_out: from 0 to below 0.5".into()),
+            (
+                self.validation.as_ref().is_some_and(|v| v.images.is_empty()),
+                "validation.images is empty".into(),
             ),
         ];
-        match checks.iter().find(|(bad, _)| *bad) {
-            Some((_, what)) => Err(problem(what.to_string())),
-            None => Ok(config),
+        match checks.into_iter().find(|(bad, _)| *bad) {
+            Some((_, what)) => Err(what),
+            None => Ok(()),
         }
+    }
+}
+
+/// The fingerprint of a file's bytes.
+fn fingerprint(bytes: &[u8]) -> String {
+    let mut hash = Fnv::new();
+    hash.feed(bytes);
+    hash.finish()
+}
+
+/// The end of a [`MoverError::NonFinite`] message.
+fn kept(checkpoint: &Option<PathBuf>) -> String {
+    match checkpoint {
+        Some(path) => format!("the last good checkpoint is kept at {}", path.display()),
+        None => "before any checkpoint was written".to_string(),
     }
 }
 
@@ -206,7 +314,8 @@ pub struct MoverState {
 pub type Sample = [f32; PROFILE_LEN + 1];
 
 /// The teacher's samples of `scene` (SuperSVG-B's drawing): each point of each outline but the
-/// background, its profile and its optimum move along the normal within [`MAX_MOVE`].
+/// background, its profile and its optimum move along the normal within [`MAX_MOVE`]. A stop
+/// ([`interrupted`]) cuts the optimization short, so the caller discards what it returns then.
 pub fn teach(scene: &Scene, teacher: &Teacher, rates: &FinetuneOptions) -> Vec<Sample> {
     let target = scene.target();
     let canvas = scene.canvas_image();
@@ -325,6 +434,10 @@ impl Room {
         let mut adam = FlatAdam::new(params.len());
         let mut best = (f64::INFINITY, params.clone());
         for _ in 0..steps {
+            // A stop cuts the teacher short; its caller then keeps nothing of this outline's.
+            if interrupted() {
+                break;
+            }
             set(&mut scene, &params);
             let (loss, gradients) = window.l2_gradient_outlines(&scene);
             if loss < best.0 {
@@ -362,31 +475,48 @@ pub fn mover_checkpoint(dir: &Path) -> PathBuf {
 }
 
 /// The teacher's samples of every image at every budget of `config`, each drawing's made once
-/// and kept in `DIR/samples/` (a resumed or repeated run reads them back).
+/// and kept in `DIR/samples/` under a name that holds the fingerprint of what made them (the
+/// image's bytes, the budget, the size, the teacher and B's networks), so a resumed or repeated
+/// run reads back exactly what it would make, and a changed setting makes them again.
 fn samples(config: &MoverConfig, dir: &Path, device: &Device) -> Result<Vec<Sample>, MoverError> {
     let folder = dir.join("samples");
-    std::fs::create_dir_all(&folder).map_err(|source| MoverError::Io { path: folder.clone(), source })?;
+    create_folder(&folder)?;
     // B as `infer` draws it, without a mover (the one trained here moves what this draws).
     let models = without_mover(device)?;
     let rates = FinetuneOptions::default();
+    let total = config.data.images.len() * config.data.paths.len();
+    let stopped = |made| MoverError::InterruptedBefore { made, total, folder: folder.clone() };
     let mut all = Vec::new();
+    let mut made_so_far = 0;
+    say!("teacher: the samples of {total} drawings, made or read back in {}", folder.display());
     for (index, image) in config.data.images.iter().enumerate() {
+        let bytes = std::fs::read(image).map_err(|source| MoverError::Io { path: image.clone(), source })?;
         for &paths in &config.data.paths {
             if interrupted() {
-                return Err(MoverError::Interrupted { epoch: 0, step: 0, checkpoint: mover_checkpoint(dir) });
+                return Err(stopped(made_so_far));
             }
             let stem = image.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-            let file = folder.join(format!("{index:03}-{stem}-{paths}.f32"));
+            let key = samples_key(&bytes, paths, config, &models);
+            let file = folder.join(format!("{index:03}-{stem}-{paths}-{key}.f32"));
             if file.exists() {
                 all.extend(read_samples(&file)?);
+                made_so_far += 1;
                 continue;
             }
             let started = Instant::now();
             let (drawn, _) = draw_b(&models, image, paths, config.data.size, device)?;
             let made = teach(&drawn, &config.teacher, &rates);
+            if interrupted() {
+                return Err(stopped(made_so_far));
+            }
+            if made.iter().flatten().any(|v| !v.is_finite()) {
+                let problem = "the teacher's moves hold a NaN or an infinity".to_string();
+                return Err(MoverError::Image { path: image.clone(), problem });
+            }
             let bytes: Vec<u8> = made.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
             write_atomic(&file, &bytes).map_err(|source| MoverError::Io { path: file.clone(), source })?;
-            eprintln!(
+            made_so_far += 1;
+            say!(
                 "{} at {paths} paths: {} points in {:.1} s",
                 image.display(),
                 made.len(),
@@ -395,7 +525,24 @@ fn samples(config: &MoverConfig, dir: &Path, device: &Device) -> Result<Vec<Samp
             all.extend(made);
         }
     }
+    if all.is_empty() {
+        return Err(MoverError::NoSamples);
+    }
     Ok(all)
+}
+
+/// The fingerprint of what makes one drawing's samples: the image's bytes, the budget, the
+/// working size, the teacher's settings and B's networks.
+fn samples_key(image: &[u8], paths: usize, config: &MoverConfig, models: &Models) -> String {
+    let mut hash = Fnv::new();
+    hash.feed_part(image);
+    let refine = models.refine.as_ref().map_or("", |network| &network.identity.checksum);
+    let settings = format!(
+        "paths {paths} size {} steps {} pad {} coarse {} refine {refine}",
+        config.data.size, config.teacher.steps, config.teacher.pad, models.coarse.identity.checksum
+    );
+    hash.feed_part(settings.as_bytes());
+    hash.finish()
 }
 
 /// SuperSVG-B's models without the mover: the bundled E_c and E_r.
@@ -452,6 +599,9 @@ impl MoverCheck {
         let mut cases = Vec::with_capacity(images.len() * data.paths.len());
         for image in images {
             for &paths in &data.paths {
+                if interrupted() {
+                    return Err(MoverError::Stopped);
+                }
                 let (scene, original) = draw_b(&models, image, paths, data.size, device)?;
                 cases.push((paths, scene, original));
             }
@@ -459,10 +609,14 @@ impl MoverCheck {
         Ok(Self { cases })
     }
 
-    /// `mover`'s scores (run on `device`), one per budget in the configuration's order.
+    /// `mover`'s scores (run on `device`), one per budget in the configuration's order (cut
+    /// short by a stop, [`interrupted`], which a caller then does not record).
     pub fn score(&self, mover: &Mover, device: &Device) -> Vec<MoverScore> {
         let mut scores: Vec<MoverScore> = Vec::new();
         for (paths, scene, original) in &self.cases {
+            if interrupted() {
+                break;
+            }
             let tally = move_outlines(mover, &mut scene.clone(), *original, device);
             let score = match scores.iter_mut().find(|score| score.paths == *paths) {
                 Some(score) => score,
@@ -482,19 +636,23 @@ impl MoverCheck {
     }
 }
 
-/// The samples [`samples`] stored in `file`.
+/// The samples [`samples`] stored in `file`: whole, and every value finite.
 fn read_samples(file: &Path) -> Result<Vec<Sample>, MoverError> {
     let bytes = std::fs::read(file).map_err(|source| MoverError::Io { path: file.to_path_buf(), source })?;
     let width = 4 * (PROFILE_LEN + 1);
     if bytes.len() % width != 0 {
         return Err(MoverError::Samples(file.to_path_buf()));
     }
-    Ok(bytes
+    let samples: Vec<Sample> = bytes
         .chunks_exact(width)
         .map(|row| {
             std::array::from_fn(|k| f32::from_le_bytes(row[4 * k..4 * k + 4].try_into().expect("4 bytes")))
         })
-        .collect())
+        .collect();
+    match samples.iter().flatten().all(|v| v.is_finite()) {
+        true => Ok(samples),
+        false => Err(MoverError::Samples(file.to_path_buf())),
+    }
 }
 
 /// How a mover run starts.
@@ -527,8 +685,13 @@ pub fn train_mover(
     device: &Device,
 ) -> Result<MoverSummary, MoverError> {
     catch_interrupts();
-    std::fs::create_dir_all(dir).map_err(|source| MoverError::Io { path: dir.to_path_buf(), source })?;
+    config.check_images()?;
+    create_folder(dir)?;
+    // One run a folder: a second would replace the first's checkpoint under it.
+    let _lock = lock_folder(dir)?;
     let checkpoint = mover_checkpoint(dir);
+    let images = config.data.images.iter().chain(config.validation.iter().flat_map(|v| &v.images));
+    check_not_input(&checkpoint, &images.collect::<Vec<_>>())?;
     if begin == Begin::Fresh && checkpoint.exists() {
         return Err(MoverError::Exists(checkpoint));
     }
@@ -539,7 +702,15 @@ pub fn train_mover(
     let inner = device.clone().inner();
     let mut samples = samples(config, dir, &inner)?;
     let check = match &config.validation {
-        Some(validation) => Some(MoverCheck::build(&validation.images, &config.data, &inner)?),
+        Some(validation) => {
+            Some(MoverCheck::build(&validation.images, &config.data, &inner).map_err(|err| match err {
+                MoverError::Stopped => {
+                    let total = config.data.images.len() * config.data.paths.len();
+                    MoverError::InterruptedBefore { made: total, total, folder: dir.join("samples") }
+                }
+                err => err,
+            })?)
+        }
         None => None,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(config.train.seed);
@@ -581,7 +752,15 @@ pub fn train_mover(
         Ok(file.save(&checkpoint)?)
     };
     let batches = learn.len().div_ceil(config.train.batch);
-    eprintln!(
+    // The checkpoint a failure leaves in place: the one resumed from, then the latest written.
+    let mut kept = (begin == Begin::Resume).then(|| checkpoint.clone());
+    let non_finite = |value: f64, step: usize, kept: &Option<PathBuf>| MoverError::NonFinite {
+        value,
+        step,
+        learning_rate: config.train.learning_rate,
+        checkpoint: kept.clone(),
+    };
+    say!(
         "{} samples, {} held out; moving nothing errs {:.4} px² there",
         learn.len(),
         held.len(),
@@ -594,6 +773,7 @@ pub fn train_mover(
         let started = Instant::now();
         for batch in order.chunks(config.train.batch).skip(state.step % batches) {
             if interrupted() {
+                heard();
                 state.seconds += started.elapsed().as_secs_f64();
                 save(&mover, &optimizer, &state)?;
                 return Err(MoverError::Interrupted { epoch: epoch + 1, step: state.step, checkpoint });
@@ -601,6 +781,10 @@ pub fn train_mover(
             let rows: Vec<&Sample> = batch.iter().map(|&k| &learn[k]).collect();
             let (inputs, targets) = tensors(&rows, device);
             let loss = (mover.forward(inputs) - targets).powi_scalar(2).mean();
+            let value = f64::from(loss.clone().into_scalar::<f32>());
+            if !value.is_finite() {
+                return Err(non_finite(value, state.step + 1, &kept));
+            }
             let grads = GradientsParams::from_grads(loss.backward(), &mover);
             mover = optimizer.step(config.train.learning_rate, mover, grads);
             state.step += 1;
@@ -608,8 +792,12 @@ pub fn train_mover(
         state.seconds += started.elapsed().as_secs_f64();
         let scored = mover.valid();
         let error = mean_square_of(&scored, held, &inner);
+        // The last step's update can leave weights no loss has seen yet: the held-out error has.
+        if !error.is_finite() {
+            return Err(non_finite(error, state.step, &kept));
+        }
         state.held_out.push(error);
-        eprintln!(
+        say!(
             "epoch {}: held-out {error:.4} px² (still {:.4}), {:.0} s",
             epoch + 1,
             state.still,
@@ -617,15 +805,23 @@ pub fn train_mover(
         );
         if let Some(check) = &check {
             let scores = check.score(&scored, &inner);
+            // Cut short by a stop: not a score; the next step saves and ends.
+            if interrupted() {
+                continue;
+            }
             for score in &scores {
-                eprintln!(
+                say!(
                     "  at inference, {} paths: {:+.3} dB, kept on {} of {} images",
-                    score.paths, score.gain_db, score.kept, score.images
+                    score.paths,
+                    score.gain_db,
+                    score.kept,
+                    score.images
                 );
             }
             state.at_inference.push(scores);
         }
         save(&mover, &optimizer, &state)?;
+        kept = Some(checkpoint.clone());
     }
     Ok(MoverSummary { state, checkpoint })
 }

@@ -99,7 +99,7 @@ impl Reporter {
             self.bar.set_position(record.step as u64);
             self.bar.set_message(message);
         } else {
-            eprintln!("step {}/{} {message}", record.step, self.total);
+            common::say!("step {}/{} {message}", record.step, self.total);
         }
         Ok(())
     }

@@ -20,7 +20,7 @@ use crate::optimizer::adamw;
 use crate::preview::write_preview;
 use crate::report::{Reporter, StepRecord};
 use crate::schedule::learning_rate;
-use crate::stop::{catch_interrupts, interrupted};
+use crate::stop::{catch_interrupts, heard, interrupted};
 use crate::validation::Validation;
 
 /// Why training stopped early.
@@ -56,6 +56,9 @@ pub enum TrainError {
         /// burn's reason.
         source: RecordError,
     },
+    /// The output folder cannot be used (a file in its place, another run writing to it).
+    #[error(transparent)]
+    Output(#[from] common::outputs::OutputError),
     /// `--resume` found no usable training state.
     #[error("{path}: cannot resume: {problem}")]
     Resume {
@@ -223,7 +226,9 @@ pub fn train<O: Objective>(
         let path = path.to_path_buf();
         move |source| TrainError::Io { path, source }
     };
-    std::fs::create_dir_all(&run.dir).map_err(io(&run.dir))?;
+    common::outputs::create_folder(&run.dir)?;
+    // One run a folder: a second would replace the first's checkpoint and metrics under it.
+    let _lock = common::outputs::lock_folder(&run.dir)?;
     catch_interrupts();
     let checkpoint = checkpoint_path::<O>(&run.dir);
     let Start { mut model, model_config, resumed } = start;
@@ -275,6 +280,7 @@ pub fn train<O: Objective>(
     let mut final_loss = f32::NAN;
     for step in first_step..optim.steps {
         if interrupted() {
+            heard();
             save(&model, &optimizer, step, seconds, &recent)?;
             reporter.finish();
             return Err(TrainError::Interrupted { step, checkpoint: Some(checkpoint) });
@@ -354,7 +360,13 @@ fn validate<O: Objective>(
     let paths = objective.draw(&model, &crops);
     let scores = validation.score(&paths.to_scenes());
     reporter.validation(step, &scores).map_err(io(dir))?;
-    if let Some(scores) = objective.score_at_inference(&model, &device) {
+    // Scoring at inference draws whole images and hears a stop between them; scores cut short
+    // are not recorded, and the loop saves and ends.
+    let at_inference = objective.score_at_inference(&model, &device);
+    if interrupted() {
+        return Ok(());
+    }
+    if let Some(scores) = at_inference {
         reporter.at_inference(step, &scores).map_err(io(dir))?;
     }
     let [batch, _, size, _] = crops.pixels.dims();

@@ -202,12 +202,10 @@ fn the_mover_trains_resumes_exactly_and_exports() {
     assert!(err.contains("mover-1.toml") && err.contains("speed"), "{err}");
     let seen = format!("[validation]\nimages = [{image:?}]\n");
     let err = fails(MOVER, &["--config", &config(1, &seen), "--out", dir.to_str().unwrap()]);
-    assert!(
-        err.contains("mover-1.toml") && err.contains("validation.images: an image of data.images"),
-        "{err}"
-    );
-    let held = dir.join("held-out.jpg");
-    std::fs::copy(&image, &held).unwrap();
+    assert!(err.contains("validation.images: ") && err.contains("is the image"), "{err}");
+    // Another picture: the astronaut turned round.
+    let held = dir.join("held-out.png");
+    image::open(&image).unwrap().fliph().save(&held).unwrap();
     let validation = format!("[validation]\nimages = [{held:?}]\n");
     let train = |config: &str, out: &Path, extra: &[&str]| {
         let output = Command::new(MOVER)
@@ -250,4 +248,24 @@ fn the_mover_trains_resumes_exactly_and_exports() {
     assert!(output.status.success() && String::from_utf8_lossy(&output.stdout).contains("move model"));
     let file = model::MoverCheckpoint::load(&shipped).unwrap();
     assert_eq!((file.optimizer.is_none(), file.weights_checksum()), (true, weights(&once)));
+
+    // A damaged mover's file is said to be damaged, not of an unknown format.
+    let mut bytes = std::fs::read(&shipped).unwrap();
+    let last = bytes.len() - 3;
+    bytes[last] ^= 1;
+    let damaged = dir.join("damaged.ckpt");
+    std::fs::write(&damaged, bytes).unwrap();
+    let err = fails(EXPORT, &[damaged.to_str().unwrap(), dir.join("out.ckpt").to_str().unwrap()]);
+    assert!(err.contains("damaged.ckpt: a damaged checkpoint") && !err.contains("unsupported"), "{err}");
+    // A file where the run's folder goes, and a held-out image that is not there, are said
+    // before any work, the image's path once.
+    let plain = dir.join("plain");
+    std::fs::write(&plain, b"a file").unwrap();
+    let err = fails(MOVER, &["--config", &config(1, ""), "--out", plain.to_str().unwrap()]);
+    assert!(err.contains("plain: is a file, not a folder"), "{err}");
+    let missing = dir.join("missing.png");
+    let absent = format!("[validation]\nimages = [{missing:?}]\n");
+    let err = fails(MOVER, &["--config", &config(1, &absent), "--out", dir.join("absent").to_str().unwrap()]);
+    assert!(err.contains("validation.images") && err.matches("missing.png").count() == 1, "{err}");
+    assert!(!err.contains("points in"), "the teacher worked first: {err}");
 }

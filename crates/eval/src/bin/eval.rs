@@ -15,11 +15,12 @@ use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use common::decode::load;
 use common::folder::files_in;
-use common::outputs::check_output;
-use common::write::{create_temporary_folder, write_atomic, write_png};
+use common::outputs::{check_output, check_replaceable, create_folder};
+use common::say;
+use common::write::{create_temporary_folder, write_atomic, write_png_marked};
 use eval::{
-    Budget, DrawError, Finetuned, Header, Input, Lpips, Method, Ours, Potrace, Results, SlicMosaic, Table,
-    Vectorizer, Vtracer, VtracerSettings, available, command_line, finish, load_models, rate_chart,
+    Budget, DrawError, Finetuned, Header, Input, Lpips, MARK, Method, Ours, Potrace, Results, SlicMosaic,
+    Table, Vectorizer, Vtracer, VtracerSettings, available, command_line, finish, load_models, rate_chart,
     rate_section, render_chart, report, sweep_points,
 };
 use infer::{
@@ -203,20 +204,26 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         bail!("{}: no images", args.dir.display());
     }
     // Every file the report run writes is checked now, before any work: none may be an image of
-    // the folder.
+    // the folder or a model file it reads, and the files named after the report are replaced
+    // only when this program wrote them.
     let stem = args.out.file_stem().map_or_else(|| "report".into(), |s| s.to_string_lossy().into_owned());
     let sheet_path = args.out.with_extension("png");
     let chart_svg = args.out.with_file_name(format!("{stem}-rate.svg"));
     let chart_png = chart_svg.with_extension("png");
-    let mut outputs = vec![&args.out, &sheet_path];
+    let models = [&args.coarse, &args.refine, &args.mover].into_iter().flatten();
+    let inputs: Vec<&PathBuf> = folder.iter().chain(models).collect();
+    let mut derived = vec![&sheet_path];
     if !args.sweep.is_empty() {
-        outputs.extend([&chart_svg, &chart_png]);
+        derived.extend([&chart_svg, &chart_png]);
     }
-    for output in outputs {
-        check_output(output, &folder)?;
+    for output in std::iter::once(&args.out).chain(derived.iter().copied()) {
+        check_output(output, &inputs)?;
+    }
+    for output in derived {
+        check_replaceable(output, MARK, "eval")?;
     }
     if let Some(folder) = &args.svgs {
-        std::fs::create_dir_all(folder).with_context(|| folder.display().to_string())?;
+        create_folder(folder)?;
     }
     let device = args.backend.device()?;
     let models = load_models(args.coarse.as_deref(), args.refine.as_deref(), args.mover.as_deref(), &device)?;
@@ -333,7 +340,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         let loaded = match load(path, args.size) {
             Ok(loaded) => loaded,
             Err(err) => {
-                eprintln!("skipping {err}");
+                say!("skipping {err}");
                 continue;
             }
         };
@@ -353,12 +360,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                     Ok(Some(drawing)) => drawing,
                     Ok(None) => continue,
                     Err(DrawError::Peer(err)) => {
-                        eprintln!(
-                            "{}: {} at {}: {err}",
-                            path.display(),
-                            method.method().name(),
-                            budget.title()
-                        );
+                        say!("{}: {} at {}: {err}", path.display(), method.method().name(), budget.title());
                         continue;
                     }
                     Err(err) => return Err(err.into()),
@@ -366,8 +368,14 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 if let (Some(folder), Some(svg), true) = (&args.svgs, &drawing.svg, method.method().is_ours())
                 {
                     let file = folder.join(method.method().svg_name(&stem, budget));
-                    if let Err(err) = write_atomic(&file, svg.as_bytes()) {
-                        eprintln!("{}: {err}", file.display());
+                    // Never over an image of the folder (`--svgs` may be that folder).
+                    let written = match check_output(&file, &inputs) {
+                        Err(err) => Err(err.to_string()),
+                        Ok(()) => write_atomic(&file, svg.as_bytes())
+                            .map_err(|err| format!("{}: {err}", file.display())),
+                    };
+                    if let Err(message) = written {
+                        say!("{message}");
                     }
                 }
                 for table in tables {
@@ -379,7 +387,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             }
         }
         let _ = std::fs::remove_file(&png);
-        eprintln!("[{}/{}] {}", index + 1, images.len(), path.display());
+        say!("[{}/{}] {}", index + 1, images.len(), path.display());
     }
     let _ = std::fs::remove_dir_all(&scratch);
     if evaluated == 0 {
@@ -387,7 +395,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     }
 
     let (sheet, columns) = results.sheet(160);
-    write_png(&sheet_path, &sheet).with_context(|| sheet_path.display().to_string())?;
+    write_png_marked(&sheet_path, &sheet, MARK).with_context(|| sheet_path.display().to_string())?;
     let header = Header {
         dir: args.dir.clone(),
         images: evaluated,
@@ -401,13 +409,13 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     let mut report = report(&header, &results);
     if !args.sweep.is_empty() {
         let points = sweep_points(&results, evaluated);
-        let document = rate_chart(&points);
+        let document = format!("<!-- {MARK} -->\n{}", rate_chart(&points));
         write_atomic(&chart_svg, document.as_bytes()).with_context(|| chart_svg.display().to_string())?;
         let pixels = render_chart(&document).with_context(|| chart_svg.display().to_string())?;
-        write_png(&chart_png, &pixels).with_context(|| chart_png.display().to_string())?;
+        write_png_marked(&chart_png, &pixels, MARK).with_context(|| chart_png.display().to_string())?;
         report.push_str(&rate_section(&points, &chart_png));
     }
     write_atomic(&args.out, report.as_bytes()).with_context(|| args.out.display().to_string())?;
-    eprintln!("wrote {} and {}", args.out.display(), sheet_path.display());
+    say!("wrote {} and {}", args.out.display(), sheet_path.display());
     Ok(())
 }

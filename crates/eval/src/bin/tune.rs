@@ -109,13 +109,16 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
     }
     let files = files_in(&args.dir)?;
     // What is written at the end is checked now, before any measuring: the table is no image
-    // of the folder, and the checkpoint that takes the best point is a coarse one, whole.
-    check_output(&args.out, &files)?;
+    // of the folder and no model file read or rewritten, and the checkpoint that takes the
+    // best point is a coarse one, whole, and no image either.
+    let models = [&args.coarse, &args.refine, &args.write].into_iter().flatten();
+    check_output(&args.out, &files.iter().chain(models).collect::<Vec<_>>())?;
     let target = match &args.write {
         Some(path) => {
             let checkpoint = Checkpoint::load(path)?;
             checkpoint.expect_stage(Stage::Coarse, path)?;
-            check_output(path, &files)?;
+            let read = [&args.refine].into_iter().flatten();
+            check_output(path, &files.iter().chain(read).collect::<Vec<_>>())?;
             Some(checkpoint)
         }
         None => None,
@@ -165,7 +168,7 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
                 result.stages[b].add(report.paths_by_stage, weight);
             }
         }
-        eprintln!("[{}/{}] {point:?}: {:?}", index + 1, points.len(), result.psnr);
+        common::say!("[{}/{}] {point:?}: {:?}", index + 1, points.len(), result.psnr);
         measured.push(result);
     }
     let mean = |m: &Measured| m.psnr.iter().sum::<f64>() / m.psnr.len() as f64;
@@ -200,12 +203,12 @@ fn run_tune(args: Args) -> anyhow::Result<()> {
         let _ = writeln!(text, " {:.2}{marker} |", mean(m));
     }
     write_atomic(&args.out, text.as_bytes()).with_context(|| args.out.display().to_string())?;
-    eprintln!("best: {:?} ({:.2} dB); wrote {}", best.point, mean(best), args.out.display());
+    common::say!("best: {:?} ({:.2} dB); wrote {}", best.point, mean(best), args.out.display());
 
     if let (Some(path), Some(checkpoint)) = (&args.write, target) {
         let tuned = Checkpoint { inference: Some(best.point), ..checkpoint };
         tuned.save(path)?;
-        eprintln!("stored the best point in {}", path.display());
+        common::say!("stored the best point in {}", path.display());
     }
     Ok(())
 }

@@ -7,7 +7,9 @@ use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::error::ErrorKind;
@@ -15,6 +17,7 @@ use clap::{CommandFactory, Parser};
 use common::Loaded;
 use common::decode::{DecodeError, LoadOptions, decode, open, read_stream};
 use common::progress::Bar;
+use common::say;
 use common::write::{write_atomic, write_png};
 use image::{Rgb32FImage, RgbImage};
 use infer::cli::{Outputs, Planned, colour, plan, stdout_closed, working_size};
@@ -64,7 +67,7 @@ struct Args {
           conflicts_with_all = ["refine", "no_refine"])]
     refiner: Refiner,
     /// Where the mover E_m moves what SuperSVG-B drew onto the image's edges: `auto` (where B
-    /// fills regions with ramps: photos, not flat art, and not with --fills flat or SuperSVG-F),
+    /// fills regions with ramps: photos, not flat art, and not with --fills flat),
     /// `on` or `off` (as with --no-refine).
     #[arg(long, default_value = "auto", value_parser = str::parse::<Moves>, conflicts_with = "no_refine")]
     moves: Moves,
@@ -113,8 +116,8 @@ struct Args {
     tolerance: Option<f32>,
     /// What regions are filled with: `flat` (each its mean colour), `linear` (a colour ramp
     /// where one fits), or `auto` (a ramp where it draws better than its bytes would as regions).
-    /// Default: auto, but flat with --finetune-secs/--finetune-steps (after fine-tuning ramps
-    /// no longer pay for their bytes) and for flat art (icons, emoji).
+    /// Default: auto, but flat for flat art (icons, emoji). SuperSVG-F starts from what B draws
+    /// with the same fills.
     #[arg(long, value_parser = str::parse::<Fills>)]
     fills: Option<Fills>,
     /// The colour transparent pixels are composited over (`#rrggbb`); the SVG is opaque.
@@ -175,15 +178,39 @@ static STOP: AtomicBool = AtomicBool::new(false);
 /// program at once).
 static FINETUNING: AtomicBool = AtomicBool::new(false);
 
-/// Ctrl-C and SIGTERM: in a job that fine-tunes the first asks for the drawings under way to be
-/// written; otherwise, or the second time, the program ends at once (status 130; every file it
-/// writes appears whole or not at all).
+/// A stop delivered again within this long is the same stop: `timeout` signals the program and
+/// then its process group, so one stop arrives twice, and must not count as "again to abort"
+/// (a person pressing Ctrl-C twice within a second means it once).
+const SAME_STOP: Duration = Duration::from_secs(1);
+
+/// How long a stop lets the drawings under way be written before the program ends anyway: a
+/// picture still being drawn (a huge one, thousands of paths) does not hold a stop.
+const STOP_GRACE: Duration = Duration::from_secs(2);
+
+/// Ctrl-C, SIGTERM and SIGHUP: in a job that fine-tunes the first asks for the drawings under
+/// way to be written (the program ends [`STOP_GRACE`] later at the latest); otherwise, or again
+/// after [`SAME_STOP`], the program ends at once. The status is 130 either way, and every file
+/// it writes appears whole or not at all ([`common::write::exit`]).
 fn catch_interrupts() {
+    static FIRST: Mutex<Option<Instant>> = Mutex::new(None);
     let _ = ctrlc::set_handler(|| {
-        if FINETUNING.load(Ordering::SeqCst) && !STOP.swap(true, Ordering::SeqCst) {
-            eprintln!("\nstopping: writing the best drawing so far (again to abort)");
-        } else {
-            std::process::exit(130);
+        if !FINETUNING.load(Ordering::SeqCst) {
+            common::write::exit(130);
+        }
+        let mut first = FIRST.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        match *first {
+            None => {
+                *first = Some(Instant::now());
+                STOP.store(true, Ordering::SeqCst);
+                say!("\nstopping: writing the best drawing so far (again to abort)");
+                std::thread::spawn(|| {
+                    std::thread::sleep(STOP_GRACE);
+                    say!("stopped: the drawings under way could not be written in time");
+                    common::write::exit(130);
+                });
+            }
+            Some(at) if at.elapsed() < SAME_STOP => {}
+            Some(_) => common::write::exit(130),
         }
     });
 }
@@ -193,19 +220,20 @@ fn main() -> ExitCode {
     // A value out of range is a usage error, as clap reports one it finds itself (status 2).
     let job = args.job().unwrap_or_else(|err| Args::command().error(ErrorKind::ValueValidation, err).exit());
     if args.output.as_os_str() == "-" && stdout_closed() {
-        eprintln!("error: -o -: stdout is closed, so the SVG would go nowhere");
+        say!("error: -o -: stdout is closed, so the SVG would go nowhere");
         return ExitCode::FAILURE;
     }
+    FINETUNING.store(job.finetune.is_some(), Ordering::SeqCst);
     catch_interrupts();
     match run(&args, &job) {
         Ok(_) if STOP.load(Ordering::SeqCst) => ExitCode::from(130),
         Ok(0) => ExitCode::SUCCESS,
         Ok(failed) => {
-            eprintln!("{failed} of {} inputs failed", args.inputs.len());
+            say!("{failed} of {} inputs failed", args.inputs.len());
             ExitCode::FAILURE
         }
         Err(err) => {
-            eprintln!("error: {err:#}");
+            say!("error: {}", common::say::chain(err.as_ref()));
             ExitCode::FAILURE
         }
     }
@@ -219,8 +247,12 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
         compare: args.compare.as_deref(),
         metrics: args.metrics.as_deref(),
     };
-    let plan = plan(&args.inputs, outputs)?;
+    let named: Vec<PathBuf> =
+        [&args.coarse, &args.refine, &args.mover].into_iter().flatten().cloned().collect();
+    let plan = plan(&args.inputs, &named, outputs)?;
     let device = args.backend.device()?;
+    // A model file given is read and verified now, whatever the job; a bundled one is loaded
+    // only for a job that can use it, and its weights verified when first used.
     let coarse = match &args.coarse {
         Some(path) => ModelSource::File(path.clone()),
         None => bundled(&BUILT_IN_COARSE)?,
@@ -231,11 +263,12 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
         (None, false) => Some(bundled(&BUILT_IN_REFINE)?),
     };
     let mut models = Models::from_sources(&coarse, refine.as_ref(), &device)?;
-    if job.moves != Moves::Off {
-        let mover = match &args.mover {
-            Some(path) => ModelSource::File(path.clone()),
-            None => bundled(&BUILT_IN_MOVER)?,
-        };
+    let mover = match &args.mover {
+        Some(path) => Some(ModelSource::File(path.clone())),
+        None if job.may_move() => Some(bundled(&BUILT_IN_MOVER)?),
+        None => None,
+    };
+    if let Some(mover) = mover {
         models = models.with_mover(&mover, &device)?;
     }
     plan.prepare()?;
@@ -247,8 +280,12 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
             (Some(refine), Refiner::Network) => refine.identity.to_string(),
             (None, Refiner::Network) => "none".to_string(),
         };
-        let mover = models.mover.as_ref().map_or_else(|| "none".to_string(), |m| m.identity.to_string());
-        eprintln!("models: coarse {coarse}, refine {refine}, mover {mover}");
+        let mover = match (&models.mover, job.may_move()) {
+            (Some(mover), true) => mover.identity.to_string(),
+            (Some(mover), false) => format!("{}, not used by this job", mover.identity),
+            (None, _) => "none".to_string(),
+        };
+        say!("models: coarse {coarse}, refine {refine}, mover {mover}");
     }
     let keeps_none = match args.operating_point {
         Split::Stored => (models.operating_point.refine_share == 0.0)
@@ -257,7 +294,7 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
         Split::Paper => None,
     };
     if let Some(which) = keeps_none.filter(|_| args.refine.is_some() || args.no_refine) {
-        eprintln!(
+        say!(
             "warning: the operating point {which} keeps no share of the budget for E_r: it only \
              fills what the coarse stage leaves unused, so --refine changes little, and \
              --no-refine little but the mover's moves"
@@ -265,7 +302,6 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
     }
     let bar = Bar::new("", jobs.len() as u64, "images", jobs.len() > 1 && !args.quiet);
     let failed = AtomicUsize::new(0);
-    FINETUNING.store(job.finetune.is_some(), Ordering::SeqCst);
     // Images in parallel, each taking the next free core; the stages of one image split over
     // the cores that are idle (the same rayon pool), so one large image still uses them all.
     // Each drawing depends on its image alone: the SVGs are those of one run per image.
@@ -280,7 +316,7 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
                 // A decoding error names its input and says what is wrong in its own words.
                 bar.println(&match message.downcast_ref::<DecodeError>() {
                     Some(decoding) => format!("error: {decoding}"),
-                    None => format!("error: {}: {message:#}", planned.name()),
+                    None => format!("error: {}: {}", planned.name(), common::say::chain(message.as_ref())),
                 });
                 failed.fetch_add(1, Ordering::SeqCst);
             }
@@ -313,6 +349,7 @@ fn process(
         long_side: args.size,
         allow_truncated: args.allow_truncated,
         background: args.background,
+        ..LoadOptions::default()
     };
     let loaded: Loaded = match &planned.input {
         Some(path) => open(path, &options)?,
@@ -327,12 +364,18 @@ fn process(
         Limit::Seconds(seconds) => Bar::new("fine-tuning", (seconds * 1000.0) as u64, "ms", shown),
         Limit::Steps(steps) => Bar::new("fine-tuning", steps as u64, "steps", shown),
     });
+    // Where no bar is drawn, a line says when SuperSVG-F begins (after B).
+    let mut said = !shown || tuning.as_ref().is_some_and(Bar::is_shown);
     let mut show = |progress: &Progress| {
         if let Some(tuning) = &tuning {
             let position =
                 progress.total_steps.map_or((progress.seconds * 1000.0) as u64, |_| progress.steps as u64);
             tuning.set_position(position);
             tuning.set_message(format!("{:.2} dB", progress.psnr));
+        }
+        if !said {
+            said = true;
+            bar.println(&format!("{}: fine-tuning", planned.name()));
         }
         if STOP.load(Ordering::SeqCst) { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
     };
@@ -352,13 +395,13 @@ fn process(
             let mut out = std::io::stdout().lock();
             match out.write_all(outcome.svg.as_bytes()).and_then(|()| out.flush()) {
                 // The reader went away (`infer - -o - | head`): end quietly, as Unix tools do.
-                Err(err) if err.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(141),
+                Err(err) if err.kind() == std::io::ErrorKind::BrokenPipe => common::write::exit(141),
                 result => result.context("stdout")?,
             }
             "stdout".to_string()
         }
     };
-    let canvas = outcome.scene.canvas_rgb8();
+    let canvas = outcome.written.canvas_rgb8();
     if let Some(path) = &planned.preview {
         write_png(path, &canvas).with_context(|| path.display().to_string())?;
     }

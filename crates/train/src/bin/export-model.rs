@@ -41,16 +41,14 @@ fn main() -> ExitCode {
     };
     // Before reading anything: an export over its own input would leave a run that cannot resume.
     if let Err(err) = common::outputs::check_output(&args.output, &[&args.input]) {
-        eprintln!("export-model: {err}");
+        common::say!("export-model: {err}");
         return ExitCode::FAILURE;
     }
     let exported = match MoverCheckpoint::load(&args.input) {
-        // Not a mover's file: E_c's or E_r's, or the error reading it as one says why not.
-        Err(CheckpointError::Format { .. } | CheckpointError::WrongStage { .. }) => {
-            Checkpoint::load(&args.input)
-                .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
-                .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint.stage.name()))
-        }
+        // E_c's or E_r's file (a mover's, damaged, or no checkpoint, is said as read).
+        Err(CheckpointError::WrongStage { .. }) => Checkpoint::load(&args.input)
+            .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
+            .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint.stage.name())),
         read => read
             .and_then(|file| file.for_inference(dtype, &args.input))
             .and_then(|file| file.save(&args.output).map(|()| MOVER_STAGE)),
@@ -58,11 +56,16 @@ fn main() -> ExitCode {
     match exported {
         Ok(stage) => {
             let bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
-            println!("{}: {stage} model, {:.3} MB", args.output.display(), bytes as f64 / 1e6);
+            // Written either way: a reader that went away changes nothing.
+            common::say::out(format_args!(
+                "{}: {stage} model, {:.3} MB",
+                args.output.display(),
+                bytes as f64 / 1e6
+            ));
             ExitCode::SUCCESS
         }
         Err(err) => {
-            eprintln!("export-model: {err}");
+            common::say!("export-model: {}", common::say::chain(&err));
             ExitCode::FAILURE
         }
     }

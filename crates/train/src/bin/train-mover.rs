@@ -7,7 +7,8 @@ use std::process::ExitCode;
 
 use burn::tensor::Device;
 use clap::Parser;
-use train::{Begin, MoverConfig, MoverError, train_mover};
+use common::say;
+use train::{Begin, MoverConfig, MoverError, mover_checkpoint, train_mover};
 
 /// Train the mover E_m of SuperSVG.
 #[derive(Parser, Debug)]
@@ -35,12 +36,15 @@ fn main() -> ExitCode {
         (_, true) => Begin::Overwrite,
         _ => Begin::Fresh,
     };
-    let result = MoverConfig::load(&args.config)
+    let checkpoint = mover_checkpoint(&args.out);
+    let result = common::outputs::check_not_input(&checkpoint, &[&args.config])
+        .map_err(MoverError::from)
+        .and_then(|()| MoverConfig::load(&args.config))
         .and_then(|config| train_mover(&config, &args.out, begin, &Device::flex().autodiff()));
     match result {
         Ok(summary) => {
             let last = summary.state.held_out.last().copied().unwrap_or(f64::NAN);
-            eprintln!(
+            say!(
                 "done: {} steps in {:.0} s, held-out {last:.4} px² (moving nothing {:.4}); checkpoint {}",
                 summary.state.step,
                 summary.state.seconds,
@@ -50,8 +54,12 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(err) => {
-            eprintln!("error: {err}");
-            ExitCode::from(if matches!(err, MoverError::Interrupted { .. }) { 130 } else { 1 })
+            say!("error: {}", common::say::chain(&err));
+            let stopped = matches!(
+                err,
+                MoverError::Interrupted { .. } | MoverError::InterruptedBefore { .. } | MoverError::Stopped
+            );
+            ExitCode::from(if stopped { 130 } else { 1 })
         }
     }
 }

@@ -36,7 +36,7 @@ impl ImageSet {
                 _ if crate::stop::interrupted() => None,
                 Ok(loaded) => Some(loaded.image),
                 Err(err) => {
-                    eprintln!("warning: skipping {err}");
+                    common::say!("warning: skipping {err}");
                     None
                 }
             })
@@ -93,7 +93,7 @@ fn collect_files(folder: &Path, seen: &mut HashSet<PathBuf>, files: &mut Vec<Pat
             if path.is_file() {
                 files.push(path);
             } else {
-                eprintln!(
+                common::say!(
                     "warning: skipping {}: not a regular file (a pipe, a device or a dead link)",
                     path.display()
                 );
