@@ -20,5 +20,8 @@ pub use method::{
 };
 pub use peers::{PeerError, VtracerSettings, available, render_chart, render_svg};
 pub use rate::{RatePoint, at, frontier};
-pub use report::{Header, Results, Row, SweepPoint, Table, rate_chart, rate_section, report, sweep_points};
+pub use report::{
+    Header, Results, Row, SweepPoint, Table, TimePoint, rate_chart, rate_section, report, sweep_points,
+    time_chart, time_points, time_section,
+};
 pub use spill::spill;

@@ -26,10 +26,11 @@ pub const SPILL_DILATION: u32 = dpw::BOUNDARY_DILATION as u32;
 pub enum Method {
     /// SuperSVG-B at the budget.
     OursB,
-    /// SuperSVG-F: B (without the mover) fine-tuned.
+    /// SuperSVG-F: B's drawing fine-tuned, as `infer --finetune-secs` draws it.
     OursF,
-    /// SuperSVG-F from what the mover moved: B fine-tuned as long.
-    OursFMoved,
+    /// SuperSVG-F as it was before it started from B's drawing: from B with flat fills and no
+    /// mover, the outlines fitted with one path where that writes less, opacity moved too.
+    OursFWas,
     /// SuperSVG-B with `--paths auto`.
     OursAuto,
     /// SuperSVG-B without its refinement networks (E_r and the mover).
@@ -63,7 +64,7 @@ impl Method {
         match self {
             Method::OursB => "SuperSVG-B (ours)",
             Method::OursF => "SuperSVG-F (ours)",
-            Method::OursFMoved => "SuperSVG-F from B and the mover (--moves on)",
+            Method::OursFWas => "SuperSVG-F as it was (flat start, fitted outlines)",
             Method::OursAuto => "SuperSVG-B (ours), --paths auto",
             Method::OursNoRefine => "SuperSVG-B without E_r and the mover (--no-refine)",
             Method::OursNoMoves => "SuperSVG-B without the mover (--moves off)",
@@ -85,7 +86,7 @@ impl Method {
             self,
             Method::OursB
                 | Method::OursF
-                | Method::OursFMoved
+                | Method::OursFWas
                 | Method::OursAuto
                 | Method::OursNoRefine
                 | Method::OursNoMoves
@@ -102,7 +103,7 @@ impl Method {
     pub fn svg_name(self, stem: &str, budget: Budget) -> String {
         let prefix = match self {
             Method::OursF => "f",
-            Method::OursFMoved => "f-moved",
+            Method::OursFWas => "f-was",
             Method::Fallback => "fallback",
             Method::OursNoRefine => "no-refine",
             Method::OursNoMoves => "no-moves",
@@ -279,7 +280,7 @@ impl Vectorizer for Ours<'_> {
 /// every path fine-tuned.
 pub struct Finetuned<'a> {
     /// B, which F starts from; its method is the row's ([`Method::OursF`] or
-    /// [`Method::OursFMoved`]).
+    /// [`Method::OursFWas`]).
     pub base: Ours<'a>,
     /// How long F runs.
     pub options: FinetuneOptions,

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use common::chart::{self, Mark, Panel, Series};
-use common::{mse, psnr, ssim};
+use common::{gmsd, mse, psnr, ssim};
 use image::{Rgb32FImage, RgbImage};
 use infer::Origin;
 
@@ -22,12 +22,14 @@ pub enum Table {
     Compared(Budget),
     /// One point of the sweep.
     Sweep(Budget),
+    /// SuperSVG-F at a budget after a number of milliseconds (reported as curves).
+    Time(Budget, u32),
 }
 
 impl Table {
     fn title(self) -> String {
         match self {
-            Table::Compared(budget) | Table::Sweep(budget) => budget.title(),
+            Table::Compared(budget) | Table::Sweep(budget) | Table::Time(budget, _) => budget.title(),
         }
     }
 }
@@ -46,6 +48,8 @@ pub struct Row {
     pub psnr: f64,
     /// SSIM against the input.
     pub ssim: f64,
+    /// GMSD against the input ([`common::gmsd`]; lower is better: false and blurred edges).
+    pub gmsd: f64,
     /// LPIPS against the input, when its weights are present.
     pub lpips: Option<f64>,
     /// Wall time of the method.
@@ -85,6 +89,7 @@ impl Results {
             mse: mse(drawn, input),
             psnr: psnr(drawn, input),
             ssim: ssim(drawn, input),
+            gmsd: gmsd(input, drawn),
             lpips: lpips.map(|net| net.distance(drawn, input)),
             seconds: drawing.seconds,
             anatomy: drawing.anatomy,
@@ -157,7 +162,7 @@ pub fn report(header: &Header, results: &Results) -> String {
         let title = title[..1].to_uppercase() + &title[1..];
         let _ = writeln!(
             text,
-            "## {title}\n\n| method | shapes | SVG KB | PSNR (dB) | SSIM | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
+            "## {title}\n\n| method | shapes | SVG KB | PSNR (dB) | SSIM | GMSD | MSE | LPIPS | seconds / image |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
         );
         let rows_here = results.iter().filter(|((t, _), _)| *t == table);
         for ((_, method), rows) in rows_here.clone() {
@@ -175,10 +180,11 @@ pub fn report(header: &Header, results: &Results) -> String {
             };
             let _ = writeln!(
                 text,
-                "| {method} | {:.0} | {kilobytes} | {:.2} | {:.4} | {:.5} | {lpips} | {:.2} |",
+                "| {method} | {:.0} | {kilobytes} | {:.2} | {:.4} | {:.4} | {:.5} | {lpips} | {:.2} |",
                 mean(&|r| r.shapes as f64),
                 mean(&|r| r.psnr),
                 mean(&|r| r.ssim),
+                mean(&|r| r.gmsd),
                 mean(&|r| r.mse),
                 mean(&|r| r.seconds)
             );
@@ -236,7 +242,7 @@ pub fn report(header: &Header, results: &Results) -> String {
 /// The tables the results fill, in order.
 fn tables(results: &BTreeMap<(Table, Method), Vec<Row>>) -> Vec<Table> {
     let mut tables: Vec<Table> =
-        results.keys().map(|(table, _)| *table).filter(|t| !matches!(t, Table::Sweep(_))).collect();
+        results.keys().map(|(table, _)| *table).filter(|t| matches!(t, Table::Compared(_))).collect();
     tables.dedup();
     tables
 }
@@ -286,6 +292,108 @@ fn colour(method: Method) -> usize {
         Method::OursFlat => 6,
         _ => 3,
     }
+}
+
+/// SuperSVG-F after some seconds at one budget, averaged over the images.
+#[derive(Clone, Copy, Debug)]
+pub struct TimePoint {
+    /// Seconds of fine-tuning.
+    pub seconds: f64,
+    /// Mean PSNR, dB.
+    pub psnr: f64,
+    /// Mean LPIPS, where measured.
+    pub lpips: Option<f64>,
+    /// Mean GMSD.
+    pub gmsd: f64,
+    /// Mean SVG kilobytes.
+    pub kilobytes: f64,
+}
+
+/// Every curve of `--time-chart`: per method and budget, its points in order of time.
+pub fn time_points(results: &Results) -> BTreeMap<(Method, usize), Vec<TimePoint>> {
+    let mut curves: BTreeMap<(Method, usize), Vec<TimePoint>> = BTreeMap::new();
+    for ((table, method), rows) in &results.rows {
+        let Table::Time(Budget::Paths(paths), millis) = *table else { continue };
+        let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
+        let lpips = rows.iter().map(|r| r.lpips).sum::<Option<f64>>().map(|sum| sum / rows.len() as f64);
+        curves.entry((*method, paths)).or_default().push(TimePoint {
+            seconds: f64::from(millis) / 1000.0,
+            psnr: mean(&|r| r.psnr),
+            lpips,
+            gmsd: mean(&|r| r.gmsd),
+            kilobytes: mean(&|r| r.bytes.unwrap_or(0) as f64) / 1000.0,
+        });
+    }
+    for points in curves.values_mut() {
+        points.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+    }
+    curves
+}
+
+/// The time chart: PSNR, and LPIPS where measured, against seconds of fine-tuning, a line per
+/// method and budget.
+pub fn time_chart(curves: &BTreeMap<(Method, usize), Vec<TimePoint>>) -> String {
+    let quality: [(&str, &str, fn(&TimePoint) -> Option<f64>); 2] = [
+        ("PSNR against fine-tuning time", "PSNR (dB), higher is better", |p| Some(p.psnr)),
+        ("LPIPS against fine-tuning time", "LPIPS, lower is better", |p| p.lpips),
+    ];
+    let panels: Vec<Panel> = quality
+        .iter()
+        .filter(|(_, _, value)| curves.values().flatten().all(|p| value(p).is_some()))
+        .map(|&(title, y_label, value)| Panel {
+            title: title.into(),
+            x_label: "seconds of SuperSVG-F".into(),
+            y_label: y_label.into(),
+            log_x: true,
+            series: curves
+                .iter()
+                .enumerate()
+                .map(|(k, ((method, paths), points))| Series {
+                    name: format!("{}, {paths} paths", method.name()),
+                    colour: k,
+                    mark: if *method == Method::OursF { Mark::LineAndDots } else { Mark::Dashed },
+                    points: points.iter().filter_map(|p| value(p).map(|v| (p.seconds, v))).collect(),
+                })
+                .collect(),
+        })
+        .collect();
+    chart::svg(&panels)
+}
+
+/// The report's section on `--time-chart`: a table per budget, a row per time, and the chart.
+pub fn time_section(curves: &BTreeMap<(Method, usize), Vec<TimePoint>>, chart: &Path) -> String {
+    let mut text = String::from(
+        "\n## SuperSVG-F against time\n\nEach budget's drawing fine-tuned for each time, from B's drawing \
+         (as `infer --finetune-secs` draws it) and as F was (from B with flat fills and no mover, \
+         outlines fitted with one path where that writes less); means over images, each drawing \
+         rendered with resvg. PSNR / LPIPS / GMSD / SVG KB.\n",
+    );
+    let budgets: std::collections::BTreeSet<usize> = curves.keys().map(|(_, paths)| *paths).collect();
+    for paths in budgets {
+        let methods: Vec<Method> = curves.keys().filter(|(_, p)| *p == paths).map(|(m, _)| *m).collect();
+        let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
+        let _ = write!(
+            text,
+            "\n### {paths} paths\n\n| seconds | {} |\n| ---: |{}\n",
+            names.join(" | "),
+            " ---: |".repeat(names.len())
+        );
+        let times = &curves[&(methods[0], paths)];
+        for (k, point) in times.iter().enumerate() {
+            let cells: Vec<String> = methods
+                .iter()
+                .map(|method| {
+                    let p = curves[&(*method, paths)][k];
+                    let lpips = p.lpips.map_or_else(|| "—".to_string(), |l| format!("{l:.4}"));
+                    format!("{:.2} / {lpips} / {:.4} / {:.1}", p.psnr, p.gmsd, p.kilobytes)
+                })
+                .collect();
+            let _ = writeln!(text, "| {} | {} |", point.seconds, cells.join(" | "));
+        }
+    }
+    let name = chart.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let _ = writeln!(text, "\n![PSNR and LPIPS against seconds of SuperSVG-F]({name})");
+    text
 }
 
 /// The rate–distortion chart: PSNR, and LPIPS where it was measured, against SVG kilobytes;

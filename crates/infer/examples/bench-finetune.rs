@@ -80,6 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             lr_points: args.lr_points.unwrap_or(defaults.lr_points),
             lr_outline_points: args.lr_outline_points.unwrap_or(defaults.lr_outline_points),
             lr_colors: args.lr_colors.unwrap_or(defaults.lr_colors),
+            ..defaults
         };
         let started = Instant::now();
         let steps = finetune(&mut scene, &options);

@@ -15,8 +15,11 @@ use raster::{
     ramp_from_params, ramp_params,
 };
 
+use model::LearnedOptimizer;
+
 use crate::fallback::fitted_path;
-use crate::scene::Scene;
+use crate::learned::LearnedSteps;
+use crate::scene::{Origin, Scene};
 
 /// When fine-tuning stops.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,6 +43,28 @@ pub struct FinetuneOptions {
     pub lr_outline_points: f32,
     /// Adam learning rate of colours and opacity.
     pub lr_colors: f32,
+    /// The learning rates decay along a half cosine to zero at the limit.
+    pub decay: bool,
+    /// Every this many steps every fill is refitted in closed form (0: never).
+    pub refit_every: usize,
+    /// The outlines move as B drew them, never fitted with one path.
+    pub as_drawn: bool,
+    /// Opacity is left as drawn.
+    pub fixed_alpha: bool,
+    /// The learned optimizer's steps, taken first (none: Adam alone).
+    pub learned: Option<Learned>,
+}
+
+/// The learned optimizer's part of SuperSVG-F ([`crate::learned`]): the network, how many of
+/// F's steps it takes before Adam goes on, and where it runs.
+#[derive(Clone, Debug)]
+pub struct Learned {
+    /// E_o.
+    pub network: std::sync::Arc<LearnedOptimizer>,
+    /// Its steps, first.
+    pub steps: usize,
+    /// Where it runs.
+    pub device: burn::tensor::Device,
 }
 
 /// What the scene is painted over (as [`Scene`] scores it).
@@ -54,14 +79,24 @@ const LR_OUTLINE: f32 = 2e-4;
 /// deep, at the PSNRs of flat art, the two part, and the window's best can draw worse than an
 /// earlier state, even worse than B (measured in docs/eval/finetune.md). Checking by steps
 /// keeps a given number of steps reproducible; a check costs one painting of the scene.
-const CHECK_EVERY: usize = 100;
+const CHECK_EVERY: usize = 10;
 
 impl Default for FinetuneOptions {
     /// 100 steps; a path's points at 1e-3 (about half a pixel a step at 512 px, the
     /// reference's rate) and colours at 3e-2, the best of the sweep in docs/method.md; an
     /// outline's points at [`LR_OUTLINE`].
     fn default() -> Self {
-        Self { limit: Limit::Steps(100), lr_points: 1e-3, lr_outline_points: LR_OUTLINE, lr_colors: 3e-2 }
+        Self {
+            limit: Limit::Steps(100),
+            lr_points: 1e-3,
+            lr_outline_points: LR_OUTLINE,
+            lr_colors: 3e-2,
+            decay: false,
+            refit_every: 0,
+            as_drawn: true,
+            fixed_alpha: true,
+            learned: None,
+        }
     }
 }
 
@@ -102,11 +137,9 @@ pub fn finetune_with_progress(
     let canvas: Vec<f32> = WHITE.iter().flat_map(|&v| std::iter::repeat_n(v, target.len() / 3)).collect();
     let Some(window) = Window::new(width, height, canvas, target) else { return 0 };
     let original = scene.scene();
-    let Some((start, was_path)) = starting_outlines(&original, (width, height)) else { return 0 };
-    let layout = Layout::of(&start);
-    let mut params = layout.params(&start);
-    let rates = layout.rates(options, &was_path);
-    let mut adam = FlatAdam::new(params.len());
+    let Some((start, was_path)) = starting_outlines(&original, (width, height), options.as_drawn) else {
+        return 0;
+    };
     let mut best = (f64::INFINITY, start);
     // The best state as the SVG shows it: its error and shapes (none: the scene as it was).
     let mut kept: (f64, Option<Vec<Shape>>) = (scene.total_error(), None);
@@ -126,12 +159,41 @@ pub fn finetune_with_progress(
     };
     let mut steps = 0;
     let mut stopped = false;
-    loop {
-        let done = stopped
-            || match options.limit {
-                Limit::Steps(total) => steps >= total,
-                Limit::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
+    let out_of_time = |steps: usize| match options.limit {
+        Limit::Steps(total) => steps >= total,
+        Limit::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
+    };
+    // E_o's steps first, each from the last; Adam goes on from the best state they reached.
+    if let Some(learned) = &options.learned {
+        let movable = scene.paths().iter().map(|placed| placed.origin != Origin::Background).collect();
+        let mut runner = LearnedSteps::new(movable, learned.steps);
+        let mut outlines = best.1.clone();
+        while steps < learned.steps && !stopped && !out_of_time(steps) {
+            let (next, loss) = runner.step(&learned.network, &outlines, &window, image, &learned.device);
+            if loss < best.0 {
+                (best, unchecked) = ((loss, outlines), true);
+            }
+            outlines = next;
+            steps += 1;
+            let progress = Progress {
+                seconds: started.elapsed().as_secs_f64(),
+                steps,
+                total_steps,
+                psnr: psnr_of_mse(best.0),
             };
+            stopped = on_step(&progress).is_break();
+        }
+        let loss = window.l2_outlines(&outlines);
+        if loss < best.0 {
+            (best, unchecked) = ((loss, outlines), true);
+        }
+    }
+    let layout = Layout::of(&best.1);
+    let mut params = layout.params(&best.1);
+    let rates = layout.rates(options, &was_path);
+    let mut adam = FlatAdam::new(params.len());
+    loop {
+        let done = stopped || out_of_time(steps);
         let outlines = layout.outlines(&best.1, &params);
         if done {
             let loss = window.l2_outlines(&outlines);
@@ -148,8 +210,22 @@ pub fn finetune_with_progress(
             check(&best.1, &mut kept);
             unchecked = false;
         }
-        adam.step(&rates, &mut params, &layout.gradient(&gradients));
+        let fraction = match options.limit {
+            Limit::Steps(total) => steps as f64 / total.max(1) as f64,
+            Limit::Seconds(limit) => started.elapsed().as_secs_f64() / limit.max(1e-9),
+        };
+        let factor =
+            if options.decay { 0.5 * (1.0 + (std::f64::consts::PI * fraction.min(1.0)).cos()) } else { 1.0 };
+        let scaled: Vec<f32> = rates.iter().map(|r| r * factor as f32).collect();
+        adam.step(&scaled, &mut params, &layout.gradient(&gradients));
         steps += 1;
+        if options.refit_every > 0 && steps % options.refit_every == 0 {
+            let moved = layout.outlines(&best.1, &params);
+            let shapes: Vec<Shape> = moved.into_iter().map(Shape::from).collect();
+            let fitted = crate::recolour::refitted(&image, &shapes);
+            let outlines: Vec<Outline> = fitted.iter().map(|s| s.to_outline().expect("finite")).collect();
+            params = layout.params(&outlines);
+        }
         let progress = Progress {
             seconds: started.elapsed().as_secs_f64(),
             steps,
@@ -177,7 +253,11 @@ pub fn finetune_with_progress(
 /// outlines where they are compact (flat art, small images), and fits them where one path
 /// writes less (the long traced edges of photos), where moving them would spend bytes that
 /// more regions use better (docs/eval/finetune.md). `None` when there is nothing to move.
-fn starting_outlines(shapes: &[Shape], (width, height): (u32, u32)) -> Option<(Vec<Outline>, Vec<bool>)> {
+fn starting_outlines(
+    shapes: &[Shape],
+    (width, height): (u32, u32),
+    as_drawn: bool,
+) -> Option<(Vec<Outline>, Vec<bool>)> {
     let size = [width as f32, height as f32];
     let fitted: Option<Vec<Path>> = shapes
         .iter()
@@ -186,7 +266,7 @@ fn starting_outlines(shapes: &[Shape], (width, height): (u32, u32)) -> Option<(V
             Shape::Outline(outline) => fitted_path(outline, (width, height)),
         })
         .collect();
-    let fitted = fitted.filter(|paths| path_bytes(paths, size) < path_bytes(shapes, size));
+    let fitted = fitted.filter(|paths| !as_drawn && path_bytes(paths, size) < path_bytes(shapes, size));
     let pairs: Option<Vec<(Outline, bool)>> = match fitted {
         Some(paths) => (paths.iter().zip(shapes))
             .map(|(path, shape)| Some((Outline::from_path(path, shape.fill())?, true)))
@@ -248,7 +328,8 @@ impl Layout {
             let (coords, paint) = if ramped { (RAMP_COORDS, RAMP_PARAMS - RAMP_COORDS) } else { (0, 3) };
             let rate = if path { options.lr_points } else { options.lr_outline_points };
             rates.extend(std::iter::repeat_n(rate, 2 * points + coords));
-            rates.extend(std::iter::repeat_n(options.lr_colors, paint + 1));
+            rates.extend(std::iter::repeat_n(options.lr_colors, paint));
+            rates.push(if options.fixed_alpha { 0.0 } else { options.lr_colors });
         }
         rates
     }
@@ -368,7 +449,7 @@ mod tests {
                 .unwrap();
         let path = Path::quadrilateral([[0.1, 0.1], [0.3, 0.1], [0.3, 0.3], [0.1, 0.3]], [0.9; 3], 1.0);
         let (outlines, was_path) =
-            starting_outlines(&[Shape::from(square.clone()), Shape::from(path)], size).unwrap();
+            starting_outlines(&[Shape::from(square.clone()), Shape::from(path)], size, false).unwrap();
         assert_eq!(was_path, [false, true]);
         assert_eq!(outlines[0], square);
         assert_eq!(outlines[1].points(), path.points);
@@ -380,7 +461,7 @@ mod tests {
             })
             .collect();
         let disc = Outline::polygon(&staircase, [0.3; 3], 1.0).unwrap();
-        let (outlines, was_path) = starting_outlines(&[Shape::from(disc.clone())], size).unwrap();
+        let (outlines, was_path) = starting_outlines(&[Shape::from(disc.clone())], size, false).unwrap();
         assert_eq!(was_path, [true]);
         assert_eq!(outlines[0].points().len(), 12);
         assert_ne!(outlines[0], disc);

@@ -27,6 +27,7 @@ mod fallback;
 mod fills;
 mod finetune;
 mod job;
+pub mod learned;
 mod models;
 mod mover;
 pub mod paper;
@@ -36,7 +37,7 @@ mod refine;
 mod scene;
 mod segmentation;
 
-pub use finetune::{FinetuneOptions, Limit, Progress, finetune, finetune_with_progress};
+pub use finetune::{FinetuneOptions, Learned, Limit, Progress, finetune, finetune_with_progress};
 pub use job::{
     AutoRule, BudgetParseError, Fills, FillsParseError, InvalidJob, Job, MAX_FINETUNE_SECS,
     MAX_FINETUNE_STEPS, MAX_OPTIMIZER_STEPS, MAX_PATHS, MAX_TOLERANCE, MIN_PATHS, Moves, MovesParseError,
@@ -44,7 +45,7 @@ pub use job::{
 };
 pub use models::{
     BUILT_IN_COARSE, BUILT_IN_MOVER, BUILT_IN_REFINE, BuiltIn, Context, Identity, MODELS_ENV, ModelSource,
-    Models, ModelsError, MoverNetwork, Network, bundled,
+    Models, ModelsError, MoverNetwork, Network, OptimizerNetwork, SmallModel, bundled,
 };
 pub use mover::MoveTally;
 pub use pipeline::{Outcome, Report, Seconds, run, run_with_progress};

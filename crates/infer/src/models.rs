@@ -6,8 +6,8 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use burn::module::Module;
 use burn::tensor::Device;
 use model::{
-    Checkpoint, CheckpointError, CoarseModel, MismatchProblem, ModelConfig, Mover, MoverCheckpoint, Opened,
-    OperatingPoint, RefineModel, Stage,
+    Checkpoint, CheckpointError, CoarseModel, LearnedOptimizer, MismatchProblem, ModelConfig, Mover, Opened,
+    OperatingPoint, RefineModel, SmallCheckpoint, SmallNetwork, Stage,
 };
 
 /// Where a checkpoint is read from: a file, or the copy of a bundled model built into this
@@ -57,11 +57,11 @@ pub static BUILT_IN_MOVER: BuiltIn =
     BuiltIn { name: "mover.ckpt", bytes: include_aligned!("../../../models/mover.ckpt") };
 
 impl ModelSource {
-    /// The mover's file it holds, read and checked.
-    pub fn open_mover(&self) -> Result<MoverCheckpoint, CheckpointError> {
+    /// The small network's file it holds (the mover's, E_o's), read and checked.
+    pub fn open_small<M: SmallNetwork>(&self) -> Result<SmallCheckpoint<M>, CheckpointError> {
         match self {
-            Self::File(path) => MoverCheckpoint::load(path),
-            Self::BuiltIn(built_in) => MoverCheckpoint::from_bytes(built_in.bytes, &self.name()),
+            Self::File(path) => SmallCheckpoint::load(path),
+            Self::BuiltIn(built_in) => SmallCheckpoint::from_bytes(built_in.bytes, &self.name()),
             Self::Memory(_) => Err(CheckpointError::Missing { path: self.name() }),
         }
     }
@@ -222,28 +222,46 @@ impl<M: Module> Network<M> {
     }
 }
 
-/// The mover inference runs: which it is, and the network, read when loaded (it is small).
-/// Cloning shares it.
+/// A small network inference runs (the mover E_m, the learned optimizer E_o): which it is, and
+/// the network, read and verified when loaded (it is small). Cloning shares it.
 #[derive(Clone)]
-pub struct MoverNetwork {
-    /// Which mover this is.
+pub struct SmallModel<M> {
+    /// Which network this is.
     pub identity: Identity,
     /// The network.
-    pub mover: Arc<Mover>,
+    pub network: Arc<M>,
 }
 
-impl MoverNetwork {
-    /// The mover in `source`, read, verified and built on `device`.
+/// The mover inference runs.
+pub type MoverNetwork = SmallModel<Mover>;
+/// The learned optimizer SuperSVG-F runs first.
+pub type OptimizerNetwork = SmallModel<LearnedOptimizer>;
+
+impl<M: SmallNetwork> SmallModel<M> {
+    /// The network in `source`, read, verified and built on `device`.
     pub fn load(source: &ModelSource, device: &Device) -> Result<Self, CheckpointError> {
-        let file = source.open_mover()?;
-        let mover = file.build(device, &source.name())?;
+        let file = source.open_small::<M>()?;
+        let network = file.build(device, &source.name())?;
         let identity = Identity {
             source: source.clone(),
             checksum: file.weights_checksum(),
             verified: true,
             training: file.training,
         };
-        Ok(Self { identity, mover: Arc::new(mover) })
+        Ok(Self { identity, network: Arc::new(network) })
+    }
+}
+
+impl OptimizerNetwork {
+    /// How many of SuperSVG-F's steps E_o takes first: the rollouts it was trained on
+    /// (`rollout.steps` of its trainer's state), 4 where the file does not say.
+    pub fn steps(&self) -> usize {
+        let state = self
+            .identity
+            .training
+            .as_deref()
+            .and_then(|json| serde_json::from_str::<serde_json::Value>(json).ok());
+        state.and_then(|state| state["config"]["rollout"]["steps"].as_u64()).map_or(4, |steps| steps as usize)
     }
 }
 
@@ -257,6 +275,8 @@ pub struct Models {
     pub refine: Option<Network<RefineModel>>,
     /// E_m; without it B's outlines stay where B drew them.
     pub mover: Option<MoverNetwork>,
+    /// E_o; without it SuperSVG-F is Adam alone.
+    pub optimizer: Option<OptimizerNetwork>,
     /// Their configuration (architecture and input contract).
     pub config: ModelConfig,
     /// How a path budget is split between regions, E_c and E_r: the one measured for these
@@ -283,6 +303,11 @@ impl Models {
     /// The same networks with the mover in `source`.
     pub fn with_mover(self, source: &ModelSource, device: &Device) -> Result<Self, CheckpointError> {
         Ok(Self { mover: Some(MoverNetwork::load(source, device)?), ..self })
+    }
+
+    /// The same networks with the learned optimizer in `source`, which SuperSVG-F runs first.
+    pub fn with_optimizer(self, source: &ModelSource, device: &Device) -> Result<Self, CheckpointError> {
+        Ok(Self { optimizer: Some(OptimizerNetwork::load(source, device)?), ..self })
     }
 
     /// [`Models::load`] from files or built-in copies. What each checkpoint says about itself
@@ -313,7 +338,7 @@ impl Models {
                 Some(Network::opened(source, opened, Stage::Refine, RefineModel::new, device)?)
             }
         };
-        Ok(Self { coarse: coarse_network, refine, mover: None, config, operating_point })
+        Ok(Self { coarse: coarse_network, refine, mover: None, optimizer: None, config, operating_point })
     }
 }
 

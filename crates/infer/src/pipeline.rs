@@ -20,7 +20,7 @@ use serde::Serialize;
 use crate::budget::{BudgetPlan, Market};
 use crate::coarse::draw_coarse;
 use crate::fills::Ramps;
-use crate::finetune::{FinetuneOptions, Progress, finetune_with_progress};
+use crate::finetune::{FinetuneOptions, Learned, Progress, finetune_with_progress};
 use crate::job::{InvalidJob, Job, Moves, PathBudget, Refiner, Split, VectorizeError, Warning};
 use crate::models::{Context, Models};
 use crate::mover::{MoveTally, move_outlines};
@@ -166,7 +166,7 @@ pub fn run_with_progress(
         Moves::Off => false,
     };
     let moved = match &models.mover {
-        Some(network) if runs => Some(move_outlines(&network.mover, &mut scene, image.original, device)),
+        Some(network) if runs => Some(move_outlines(&network.network, &mut scene, image.original, device)),
         _ => None,
     };
     let moves = clock.elapsed().as_secs_f64();
@@ -183,7 +183,7 @@ pub fn run_with_progress(
         moves: moved,
         seconds,
     };
-    finish(scene, image, job, drawn, warnings, on_step)
+    finish(scene, image, job, drawn, warnings, (models, device), on_step)
 }
 
 /// [`run_with_progress`] at the paper's operating point ([`crate::paper`]).
@@ -209,7 +209,7 @@ fn run_paper(
     };
     let drawn =
         Drawn { auto_budget: false, budget: paths, point: Split::Paper, refinement, moves: None, seconds };
-    finish(scene, image, job, drawn, Vec::new(), on_step)
+    finish(scene, image, job, drawn, Vec::new(), (models, context.device), on_step)
 }
 
 /// Exports `scene` (with a warning when a fixed budget was not filled), then fine-tunes it if
@@ -220,6 +220,7 @@ fn finish(
     job: &Job,
     drawn: Drawn,
     mut warnings: Vec<Warning>,
+    (models, device): (&Models, &Device),
     on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> Result<Outcome, VectorizeError> {
     if !drawn.auto_budget && scene.len() < drawn.budget {
@@ -227,7 +228,18 @@ fn finish(
     }
     let outcome = export(scene, image, job, drawn, warnings)?;
     match &job.finetune {
-        Some(options) => outcome.finetuned(image, job, options, on_step),
+        Some(options) => {
+            // F takes E_o's steps first where the models have one and the job names none.
+            let learned = options.learned.clone().or_else(|| {
+                let optimizer = models.optimizer.as_ref()?;
+                Some(Learned {
+                    network: optimizer.network.clone(),
+                    steps: optimizer.steps(),
+                    device: device.clone(),
+                })
+            });
+            outcome.finetuned(image, job, &FinetuneOptions { learned, ..options.clone() }, on_step)
+        }
         None => Ok(outcome),
     }
 }
@@ -300,7 +312,8 @@ fn export(
 
 impl Outcome {
     /// SuperSVG-F from this outcome: every path fine-tuned against `image` (the image the
-    /// outcome was drawn from) as `options` say, then exported again. `on_step` is called after
+    /// outcome was drawn from) as `options` say, then exported again; never worse than this
+    /// outcome by the error of what its file shows (this outcome is returned where it would be). `on_step` is called after
     /// every step; breaking stops with the best drawing so far.
     pub fn finetuned(
         self,
@@ -309,6 +322,7 @@ impl Outcome {
         options: &FinetuneOptions,
         on_step: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
     ) -> Result<Outcome, VectorizeError> {
+        let b = self.clone();
         let Outcome { mut scene, report, warnings, .. } = self;
         let clock = Instant::now();
         let steps = finetune_with_progress(&mut scene, options, on_step);
@@ -322,6 +336,15 @@ impl Outcome {
             seconds,
         };
         let mut outcome = export(scene, image, job, drawn, warnings)?;
+        // F keeps its best state by the drawing's own error; the file rounds it. Where the file
+        // of F's best would draw worse than B's, B's is F's answer: F never draws worse.
+        if outcome.report.mse > b.report.mse {
+            let total = b.report.seconds.total + outcome.report.seconds.finetune.unwrap_or(0.0);
+            outcome = Outcome {
+                report: Report { seconds: Seconds { total, ..outcome.report.seconds }, ..b.report },
+                ..b
+            };
+        }
         outcome.report.finetune_steps = Some(steps);
         Ok(outcome)
     }

@@ -6,8 +6,8 @@ use burn::tensor::Device;
 use common::Loaded;
 use image::{Rgb, Rgb32FImage};
 use infer::{
-    AutoRule, BUILT_IN_MOVER, Fills, InvalidJob, Job, ModelSource, Models, Moves, Network, PathBudget, Split,
-    VectorizeError, run,
+    AutoRule, BUILT_IN_MOVER, Fills, FinetuneOptions, InvalidJob, Job, Limit, ModelSource, Models, Moves,
+    Network, PathBudget, Split, VectorizeError, run,
 };
 use model::OperatingPoint;
 
@@ -20,6 +20,7 @@ fn models(refine: bool) -> Models {
         coarse: Network::in_memory(coarse, "tiny E_c"),
         refine: refine.then(|| Network::in_memory(e_r, "tiny E_r")),
         mover: None,
+        optimizer: None,
         config,
         operating_point: OperatingPoint::default(),
     }
@@ -315,4 +316,49 @@ fn the_mover_leaves_an_exact_drawing_as_it_was() {
     let tally = moved.report.moves.expect("the mover ran");
     assert!(!tally.kept && tally.points > 0, "{tally:?}");
     assert_eq!(moved.svg, drawn.svg);
+}
+
+/// SuperSVG-F never draws worse than B with the same job: on random jobs (budgets, fills,
+/// moves, decimals, steps), an image drawn with F has at most the error of the same job
+/// without F, measured on what each file shows.
+#[test]
+fn f_never_draws_worse_than_b() {
+    use rand::{Rng, SeedableRng};
+    let device = Device::flex();
+    let models = with_mover();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(71);
+    let flat_art = Loaded::from_image(Rgb32FImage::from_fn(80, 64, |x, y| {
+        let inside = (x as f32 - 30.0).hypot(y as f32 - 30.0) < 18.0;
+        if inside {
+            Rgb([0.9, 0.2, 0.1])
+        } else if x > 60 {
+            Rgb([0.1, 0.3, 0.8])
+        } else {
+            Rgb([0.95, 0.9, 0.6])
+        }
+    }));
+    for round in 0..8 {
+        let image = if round % 2 == 0 { photo() } else { flat_art.clone() };
+        let paths = match rng.random_range(0..3) {
+            0 => PathBudget::Auto(AutoRule::default()),
+            _ => PathBudget::Count(rng.random_range(4..120)),
+        };
+        let fills = [None, Some(Fills::Flat), Some(Fills::Linear), Some(Fills::Auto)][rng.random_range(0..4)];
+        let moves = [Moves::Auto, Moves::On, Moves::Off][rng.random_range(0..3)];
+        let decimals = rng.random_range(0..4);
+        let b = Job {
+            paths,
+            fills,
+            moves,
+            svg: raster::SvgOptions { decimals, ..Default::default() },
+            ..Job::default()
+        };
+        let limit = Limit::Steps(rng.random_range(1..40));
+        let f = Job { finetune: Some(FinetuneOptions { limit, ..FinetuneOptions::default() }), ..b.clone() };
+        let (b_error, f_error) = (
+            run(&models, &image, &b, &device).unwrap().report.mse,
+            run(&models, &image, &f, &device).unwrap().report.mse,
+        );
+        assert!(f_error <= b_error, "round {round}: F {f_error} against B {b_error} ({f:?})");
+    }
 }

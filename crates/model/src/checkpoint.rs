@@ -31,6 +31,7 @@ use rayon::prelude::*;
 
 use crate::coarse::CoarseModel;
 use crate::config::{InvalidSetting, ModelConfig};
+use crate::learned::{LearnedOptimizer, OPTIMIZER_STAGE};
 use crate::mover::Mover;
 use crate::operating::OperatingPoint;
 use crate::refine::RefineModel;
@@ -658,44 +659,91 @@ pub fn load_refine(path: &Path, device: &Device) -> Result<(RefineModel, ModelCo
     Ok((opened.build(RefineModel::new(&config, device))?, config))
 }
 
-/// The format of a mover's file ([`MoverCheckpoint`]).
-const MOVER_FORMAT: &str = "supersvg-mover/1";
+/// A network small enough to be sized by its module alone (no [`ModelConfig`]), stored in a
+/// [`SmallCheckpoint`] of its own format: the mover E_m and the learned optimizer E_o.
+pub trait SmallNetwork: Module {
+    /// The file's format, `supersvg-NAME/VERSION`.
+    const FORMAT: &'static str;
+    /// The stage the file names (what errors call the network).
+    const STAGE: &'static str;
+    /// The network with burn's initial weights on `device`.
+    fn fresh(device: &Device) -> Self;
+}
+
+impl SmallNetwork for Mover {
+    const FORMAT: &'static str = "supersvg-mover/1";
+    const STAGE: &'static str = MOVER_STAGE;
+    fn fresh(device: &Device) -> Self {
+        Mover::new(device)
+    }
+}
+
 /// The stage a mover's file names.
 pub const MOVER_STAGE: &str = "move";
 
-/// A mover's file ([`Mover`]): its weights and, for resuming training, the optimizer state and
-/// the trainer's own state. The container, keys and checks of [`Checkpoint`], without a
-/// [`ModelConfig`]: the mover's size is its module's.
-#[derive(Clone)]
-pub struct MoverCheckpoint {
+/// A mover's file ([`Mover`]).
+pub type MoverCheckpoint = SmallCheckpoint<Mover>;
+
+impl SmallNetwork for LearnedOptimizer {
+    const FORMAT: &'static str = "supersvg-optimizer/1";
+    const STAGE: &'static str = OPTIMIZER_STAGE;
+    fn fresh(device: &Device) -> Self {
+        LearnedOptimizer::new(device)
+    }
+}
+
+/// The learned optimizer's file ([`LearnedOptimizer`]).
+pub type OptimizerCheckpoint = SmallCheckpoint<LearnedOptimizer>;
+
+/// A small network's file ([`SmallNetwork`]): its weights and, for resuming training, the
+/// optimizer state and the trainer's own state. The container, keys and checks of
+/// [`Checkpoint`], without a [`ModelConfig`]: the network's size is its module's.
+pub struct SmallCheckpoint<M> {
     /// The weights, as burnpack bytes of a [`burn::store::ModuleRecord`].
     pub model: Bytes,
     /// The optimizer state, as burnpack bytes, when the file is for resuming training.
     pub optimizer: Option<Bytes>,
     /// The trainer's own state as JSON, opaque here.
     pub training: Option<String>,
+    network: std::marker::PhantomData<fn() -> M>,
 }
 
-impl MoverCheckpoint {
-    /// A file of `mover`'s current weights, in f32 (the mover is small).
-    pub fn of_model(mover: &Mover) -> Self {
-        let model = mover.clone().into_record().into_bytes().expect("a record serializes to memory");
-        Self { model, optimizer: None, training: None }
+impl<M> Clone for SmallCheckpoint<M> {
+    fn clone(&self) -> Self {
+        Self {
+            model: self.model.clone(),
+            optimizer: self.optimizer.clone(),
+            training: self.training.clone(),
+            network: std::marker::PhantomData,
+        }
+    }
+}
+
+impl<M: SmallNetwork> SmallCheckpoint<M> {
+    /// A file of `network`'s current weights, in f32 (the network is small).
+    pub fn of_model(network: &M) -> Self {
+        let model = network.clone().into_record().into_bytes().expect("a record serializes to memory");
+        Self { model, optimizer: None, training: None, network: std::marker::PhantomData }
     }
 
     /// The same weights without the optimizer state, stored in `dtype`: what inference needs.
-    /// The trainer's state stays, so a shipped mover still says how it was trained.
+    /// The trainer's state stays, so a shipped network still says how it was trained.
     pub fn for_inference(&self, dtype: DType, path: &Path) -> Result<Self, CheckpointError> {
         let model = convert(&self.model, dtype)
             .map_err(|source| CheckpointError::Format { path: path.to_path_buf(), problem: source.into() })?;
-        Ok(Self { model, optimizer: None, training: self.training.clone() })
+        Ok(Self {
+            model,
+            optimizer: None,
+            training: self.training.clone(),
+            network: std::marker::PhantomData,
+        })
     }
 
     /// Writes it to `path` atomically.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         let header = Header {
-            format: MOVER_FORMAT,
-            stage: MOVER_STAGE,
+            format: M::FORMAT,
+            stage: M::STAGE,
             model: None,
             training: self.training.as_deref(),
             inference: None,
@@ -703,13 +751,14 @@ impl MoverCheckpoint {
         write(path, &header, &self.model, self.optimizer.as_ref())
     }
 
-    /// Reads the mover's file at `path` (or a stream: [`Checkpoint::open`]), checked against
+    /// Reads the network's file at `path` (or a stream: [`Checkpoint::open`]), checked against
     /// its checksums.
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
         Self::read(reader_of(path)?, path)
     }
 
-    /// [`MoverCheckpoint::load`] of a file built into the program; `name` stands for it in errors.
+    /// [`SmallCheckpoint::load`] of a file built into the program; `name` stands for it in
+    /// errors.
     pub fn from_bytes(bytes: &'static [u8], name: &Path) -> Result<Self, CheckpointError> {
         let reader = Reader::from_bytes(in_place(bytes))
             .map_err(|source| CheckpointError::Format { path: name.to_path_buf(), problem: source.into() })?;
@@ -721,14 +770,15 @@ impl MoverCheckpoint {
         let metadata = reader.metadata().clone();
         let get = |key: &'static str| metadata.get(key).cloned().ok_or(FormatProblem::MissingKey(key));
         let found = get(key::FORMAT).map_err(format)?;
-        if found != MOVER_FORMAT {
-            // E_c's or E_r's checkpoint given for the mover's.
-            let stage = metadata.get(key::STAGE).and_then(|stage| Stage::from_name(stage));
+        if found != M::FORMAT {
+            // Another network's file given for this one's.
+            let stage = metadata.get(key::STAGE).cloned();
+            let ours = found.starts_with("supersvg-");
             return Err(match stage {
-                Some(stage) if found.starts_with("supersvg-checkpoint/") => CheckpointError::WrongStage {
+                Some(stage) if ours => CheckpointError::WrongStage {
                     path: name.to_path_buf(),
-                    expected: MOVER_STAGE,
-                    found: stage.name(),
+                    expected: M::STAGE,
+                    found: stage_name(&stage),
                 },
                 _ => format(FormatProblem::UnsupportedFormat(found)),
             });
@@ -740,7 +790,7 @@ impl MoverCheckpoint {
             split(reader.into_tensors().map_err(|e| format(e.into()))?).map_err(format)?;
         verify(&model, Some(&stored)).map_err(format)?;
         let computed = state_checksum(State {
-            stage: MOVER_STAGE,
+            stage: M::STAGE,
             model: "",
             training: training.as_deref(),
             inference: None,
@@ -750,21 +800,34 @@ impl MoverCheckpoint {
             return Err(format(FormatProblem::StateChecksum { stored: stored_state, computed }));
         }
         let model = pack(model).map_err(|source| format(source.into()))?;
-        Ok(Self { model, optimizer, training })
+        Ok(Self { model, optimizer, training, network: std::marker::PhantomData })
     }
 
-    /// The checksum of the weights, which the file stores and reading verifies: the mover's
+    /// The checksum of the weights, which the file stores and reading verifies: the network's
     /// identity.
     pub fn weights_checksum(&self) -> String {
         let entries = entries(&self.model).expect("the weights were read from a burnpack");
         checksum(entries.iter().map(|e| (e.name.as_str(), &e.data)))
     }
 
-    /// The mover with these weights on `device`; `name` stands for the file in errors.
-    pub fn build(&self, device: &Device, name: &Path) -> Result<Mover, CheckpointError> {
+    /// The network with these weights on `device`; `name` stands for the file in errors.
+    pub fn build(&self, device: &Device, name: &Path) -> Result<M, CheckpointError> {
         let weights = entries(&self.model)
             .map_err(|source| CheckpointError::Format { path: name.to_path_buf(), problem: source.into() })?;
-        apply(Mover::new(device), weights.iter().map(Entry::to_f32).collect(), name)
+        apply(M::fresh(device), weights.iter().map(Entry::to_f32).collect(), name)
+    }
+}
+
+/// The name errors give a stage a file names: E_c's and E_r's, the small networks', or the
+/// file's own word.
+fn stage_name(stage: &str) -> &'static str {
+    if let Some(stage) = Stage::from_name(stage) {
+        return stage.name();
+    }
+    match stage {
+        MOVER_STAGE => MOVER_STAGE,
+        OPTIMIZER_STAGE => OPTIMIZER_STAGE,
+        _ => "another network's",
     }
 }
 

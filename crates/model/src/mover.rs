@@ -43,6 +43,11 @@ impl Mover {
         }
     }
 
+    /// Its two hidden layers, which read a profile: what the learned optimizer starts from.
+    pub fn profile_layers(&self) -> (Linear, Linear) {
+        (self.first.clone(), self.second.clone())
+    }
+
     /// `[N, PROFILE_LEN]` profiles to `[N]` moves in pixels, unbounded: what training regresses.
     pub fn forward(&self, profiles: Tensor<2>) -> Tensor<1> {
         let hidden = self.relu.forward(self.first.forward(profiles));
@@ -91,7 +96,23 @@ impl Frame {
 pub fn frames(outline: &Outline, (width, height): (u32, u32)) -> Vec<Frame> {
     let (w, h) = (width as f32, height as f32);
     let points: Vec<[f32; 2]> = outline.points().iter().map(|p| [p[0] * w, p[1] * h]).collect();
-    let mut frames = Vec::with_capacity(points.len());
+    neighbours(outline)
+        .into_iter()
+        .zip(&points)
+        .map(|((prev, next), &point)| {
+            let (prev, next) = (points[prev], points[next]);
+            let (tx, ty) = (next[0] - prev[0], next[1] - prev[1]);
+            let length = tx.hypot(ty);
+            let normal = if length > 1e-6 { [-ty / length, tx / length] } else { [0.0; 2] };
+            Frame { at: point, normal }
+        })
+        .collect()
+}
+
+/// The points before and after each point of `outline` on its contour ([`Outline::points`]'
+/// indices and order).
+pub fn neighbours(outline: &Outline) -> Vec<(usize, usize)> {
+    let mut around = Vec::new();
     let mut at = 0;
     for contour in outline.contours() {
         let count: usize = (contour.segments.iter())
@@ -100,17 +121,10 @@ pub fn frames(outline: &Outline, (width, height): (u32, u32)) -> Vec<Frame> {
                 Segment::Cubic(..) => 3,
             })
             .sum();
-        let ring = &points[at..at + count];
-        for (j, &point) in ring.iter().enumerate() {
-            let (prev, next) = (ring[(j + count - 1) % count], ring[(j + 1) % count]);
-            let (tx, ty) = (next[0] - prev[0], next[1] - prev[1]);
-            let length = tx.hypot(ty);
-            let normal = if length > 1e-6 { [-ty / length, tx / length] } else { [0.0; 2] };
-            frames.push(Frame { at: point, normal });
-        }
+        around.extend((0..count).map(|j| (at + (j + count - 1) % count, at + (j + 1) % count)));
         at += count;
     }
-    frames
+    around
 }
 
 /// What the mover reads at `frame`: the target's and the canvas's RGB at each of

@@ -774,8 +774,12 @@ mod tests {
                 load::<CoarseConfig>(&path).unwrap();
             } else if name == "mover.toml" {
                 crate::MoverConfig::load(&path).unwrap();
+            } else if name == "optimizer.toml" {
+                crate::OptimizerConfig::load(&path).unwrap();
             } else {
-                panic!("{name}: configs/ holds *coarse.toml, *refine.toml and mover.toml only");
+                panic!(
+                    "{name}: configs/ holds *coarse.toml, *refine.toml, mover.toml and optimizer.toml only"
+                );
             }
             seen += 1;
         }

@@ -207,6 +207,7 @@ impl CoarseCheck {
             coarse: Network::in_memory(model.clone(), "the model in training"),
             refine: None,
             mover: None,
+            optimizer: None,
             config: self.config.clone(),
             operating_point: self.point,
         };

@@ -9,6 +9,7 @@ pub mod cli;
 pub mod config;
 mod data;
 mod inference;
+mod learned;
 mod mover;
 mod objective;
 mod optimizer;
@@ -24,6 +25,10 @@ pub use data::{
     Batch, DataError, DataSource, DrawnBox, DrawnBoxes, ImageSet, Loader, Samples, synthetic_scene,
 };
 pub use inference::{AtInference, CoarseCheck, CoarseScores, RefineCheck, RefineScores};
+pub use learned::{
+    Case, Drawings, OptimizerConfig, OptimizerError, OptimizerState, OptimizerSummary, OptimizerTraining,
+    Rollout, Scoring, optimizer_checkpoint, rollout, train_optimizer,
+};
 pub use mover::{
     Begin, MoverCheck, MoverConfig, MoverData, MoverError, MoverScore, MoverState, MoverSummary,
     MoverTraining, MoverValidation, Room, Sample, Teacher, mover_checkpoint, teach, train_mover,

@@ -21,7 +21,7 @@ use common::write::{create_temporary_folder, write_atomic, write_png_marked};
 use eval::{
     Budget, DrawError, Finetuned, Header, Input, Lpips, MARK, Method, Ours, Potrace, Results, SlicMosaic,
     Table, Vectorizer, Vtracer, VtracerSettings, available, command_line, finish, load_models, rate_chart,
-    rate_section, render_chart, report, sweep_points,
+    rate_section, render_chart, report, sweep_points, time_chart, time_points, time_section,
 };
 use infer::{
     AutoRule, Fills, FinetuneOptions, Job, Limit, Moves, OPTIMIZER_STEPS, PathBudget, Refiner, Split,
@@ -67,10 +67,16 @@ struct Args {
     /// Path budgets, comma separated (each 2 to 20 000).
     #[arg(long, value_delimiter = ',', default_value = "500,2000", allow_hyphen_values = true)]
     paths: Vec<usize>,
-    /// Also run SuperSVG-F, fine-tuning for this many seconds per image: from B as `infer
-    /// --finetune-secs` does (the mover off), and from B and the mover (`--moves on`).
+    /// Also run SuperSVG-F, fine-tuning for this many seconds per image: from B's drawing as
+    /// `infer --finetune-secs` does, and as F was before it started there (from B with flat
+    /// fills and no mover, the outlines fitted with one path where that writes less).
     #[arg(long, allow_hyphen_values = true)]
     finetune_secs: Option<f64>,
+    /// SuperSVG-F's quality against time: both of `--finetune-secs`' rows at each of these
+    /// seconds (comma separated) and each of `--paths`; the report gets a section and the chart
+    /// goes beside it (`REPORT-time.png` and `.svg`).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    time_chart: Vec<f64>,
     /// The markdown report to write; the contact sheet goes next to it as PNG.
     #[arg(long)]
     out: PathBuf,
@@ -149,6 +155,15 @@ fn main() -> ExitCode {
     finish(run_eval(Args::parse()))
 }
 
+/// SuperSVG-F's two rows with `limit`: F from B's drawing (`job`), and F as it was (from B with
+/// flat fills and no mover, the outlines fitted where that writes less, opacity moved).
+fn f_variants(job: &Job, limit: Limit) -> [(Method, Job, FinetuneOptions); 2] {
+    let now = FinetuneOptions { limit, ..FinetuneOptions::default() };
+    let was = FinetuneOptions { as_drawn: false, fixed_alpha: false, ..now.clone() };
+    let flat = Job { fills: Some(Fills::Flat), moves: Moves::Off, ..job.clone() };
+    [(Method::OursF, job.clone(), now), (Method::OursFWas, flat, was)]
+}
+
 impl Args {
     /// SuperSVG's job at every budget, checked by the library's rules (those `infer` applies),
     /// its refusals named by the flag they are about.
@@ -180,6 +195,11 @@ impl Args {
                 })?;
             }
         }
+        for &seconds in &self.time_chart {
+            let options = FinetuneOptions { limit: Limit::Seconds(seconds), ..FinetuneOptions::default() };
+            let checked = Job { finetune: Some(options), ..job.clone() };
+            checked.validate().map_err(|err| anyhow::anyhow!("--time-chart: {err}"))?;
+        }
         Ok(job)
     }
 
@@ -210,11 +230,16 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
     let sheet_path = args.out.with_extension("png");
     let chart_svg = args.out.with_file_name(format!("{stem}-rate.svg"));
     let chart_png = chart_svg.with_extension("png");
+    let time_svg = args.out.with_file_name(format!("{stem}-time.svg"));
+    let time_png = time_svg.with_extension("png");
     let models = [&args.coarse, &args.refine, &args.mover].into_iter().flatten();
     let inputs: Vec<&PathBuf> = folder.iter().chain(models).collect();
     let mut derived = vec![&sheet_path];
     if !args.sweep.is_empty() {
         derived.extend([&chart_svg, &chart_png]);
+    }
+    if !args.time_chart.is_empty() {
+        derived.extend([&time_svg, &time_png]);
     }
     for output in std::iter::once(&args.out).chain(derived.iter().copied()) {
         check_output(output, &inputs)?;
@@ -263,10 +288,8 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         methods.push(Box::new(ours(Method::Fallback, &regions_only, unmoved.clone())));
     }
     if let Some(seconds) = args.finetune_secs {
-        let options = FinetuneOptions { limit: Limit::Seconds(seconds), ..FinetuneOptions::default() };
-        let moved = Job { moves: Moves::On, ..job.clone() };
-        for (method, job) in [(Method::OursF, unmoved.clone()), (Method::OursFMoved, moved)] {
-            methods.push(Box::new(Finetuned { base: ours(method, &models, job), options: options.clone() }));
+        for (method, job, options) in f_variants(&job, Limit::Seconds(seconds)) {
+            methods.push(Box::new(Finetuned { base: ours(method, &models, job), options }));
         }
     }
     if args.wants(Peer::NoRefine) {
@@ -386,6 +409,18 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
                 }
             }
         }
+        // SuperSVG-F against time: both rows at every time and budget.
+        for &paths in &args.paths {
+            for &seconds in &args.time_chart {
+                for (method, job, options) in f_variants(&job, Limit::Seconds(seconds)) {
+                    let f = Finetuned { base: ours(method, &models, job), options };
+                    if let Some(drawing) = f.draw(&input, Budget::Paths(paths))? {
+                        let table = Table::Time(Budget::Paths(paths), (seconds * 1000.0).round() as u32);
+                        results.record((&name, &loaded.image), table, method, &drawing, lpips.as_ref());
+                    }
+                }
+            }
+        }
         let _ = std::fs::remove_file(&png);
         say!("[{}/{}] {}", index + 1, images.len(), path.display());
     }
@@ -414,6 +449,14 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         let pixels = render_chart(&document).with_context(|| chart_svg.display().to_string())?;
         write_png_marked(&chart_png, &pixels, MARK).with_context(|| chart_png.display().to_string())?;
         report.push_str(&rate_section(&points, &chart_png));
+    }
+    if !args.time_chart.is_empty() {
+        let curves = time_points(&results);
+        let document = format!("<!-- {MARK} -->\n{}", time_chart(&curves));
+        write_atomic(&time_svg, document.as_bytes()).with_context(|| time_svg.display().to_string())?;
+        let pixels = render_chart(&document).with_context(|| time_svg.display().to_string())?;
+        write_png_marked(&time_png, &pixels, MARK).with_context(|| time_png.display().to_string())?;
+        report.push_str(&time_section(&curves, &time_png));
     }
     write_atomic(&args.out, report.as_bytes()).with_context(|| args.out.display().to_string())?;
     say!("wrote {} and {}", args.out.display(), sheet_path.display());

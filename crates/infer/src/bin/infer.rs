@@ -74,6 +74,10 @@ struct Args {
     /// The mover's checkpoint (default: the bundled one, or mover.ckpt in $SUPERSVG_MODELS).
     #[arg(long)]
     mover: Option<PathBuf>,
+    /// A learned optimizer E_o (`train-optimizer`'s file): SuperSVG-F takes its steps first,
+    /// then Adam's (default: Adam alone).
+    #[arg(long)]
+    optimizer: Option<PathBuf>,
     /// Compute backend: flex, ndarray or wgpu.
     #[arg(long, default_value = "flex")]
     backend: Backend,
@@ -271,6 +275,9 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
     if let Some(mover) = mover {
         models = models.with_mover(&mover, &device)?;
     }
+    if let Some(path) = &args.optimizer {
+        models = models.with_optimizer(&ModelSource::File(path.clone()), &device)?;
+    }
     plan.prepare()?;
     let jobs = plan.jobs;
     if !args.quiet {
@@ -285,7 +292,11 @@ fn run(args: &Args, job: &Job) -> anyhow::Result<usize> {
             (Some(mover), false) => format!("{}, not used by this job", mover.identity),
             (None, _) => "none".to_string(),
         };
-        say!("models: coarse {coarse}, refine {refine}, mover {mover}");
+        let optimizer = match &models.optimizer {
+            Some(optimizer) => format!(", optimizer {}", optimizer.identity),
+            None => String::new(),
+        };
+        say!("models: coarse {coarse}, refine {refine}, mover {mover}{optimizer}");
     }
     let keeps_none = match args.operating_point {
         Split::Stored => (models.operating_point.refine_share == 0.0)
