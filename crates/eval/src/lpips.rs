@@ -60,6 +60,9 @@ pub struct Lpips {
 /// Stride and padding of AlexNet's five convolutions.
 const LAYERS: [(usize, usize); 5] = [(4, 2), (1, 2), (1, 1), (1, 1), (1, 1)];
 
+/// The max-pooling window after the first two convolutions (stride 2).
+const POOL: usize = 3;
+
 impl Lpips {
     /// The folder the weights are read from: `$SUPERSVG_LPIPS`, else `models/lpips` of the source
     /// tree this program was built from.
@@ -118,8 +121,13 @@ impl Lpips {
     }
 
     /// LPIPS distance between two images of the same size (0 for identical images, higher is
-    /// more different).
-    pub fn distance(&self, a: &Rgb32FImage, b: &Rgb32FImage) -> f64 {
+    /// more different); `None` for an image too small for AlexNet's layers to see (under
+    /// [`Lpips::smallest_side`] pixels a side), where LPIPS is not defined.
+    pub fn distance(&self, a: &Rgb32FImage, b: &Rgb32FImage) -> Option<f64> {
+        let (width, height) = a.dimensions();
+        if width.min(height) < self.smallest_side() {
+            return None;
+        }
         let (fa, fb) = (self.features(a), self.features(b));
         let mut total = 0.0;
         for ((xa, xb), head) in fa.into_iter().zip(fb).zip(&self.heads) {
@@ -128,7 +136,26 @@ impl Lpips {
                 conv2d(difference, head.clone(), None, ConvOptions::new([1, 1], [0, 0], [1, 1], 1));
             total += weighted.mean().into_scalar::<f32>() as f64;
         }
-        total
+        Some(total)
+    }
+
+    /// The shortest image side every layer of the network still has a pixel of output for.
+    pub fn smallest_side(&self) -> u32 {
+        (1..).find(|&side| self.output_side(side).is_some()).expect("some side fits")
+    }
+
+    /// The side of the last layer's output for an input `side` pixels wide; `None` where a
+    /// convolution's kernel or a pooling window no longer fits.
+    fn output_side(&self, side: u32) -> Option<u32> {
+        let mut side = side as usize;
+        for (layer, ((weight, _), (stride, padding))) in self.convs.iter().zip(LAYERS).enumerate() {
+            let kernel = weight.dims()[2];
+            side = (side + 2 * padding).checked_sub(kernel)? / stride + 1;
+            if layer < 2 {
+                side = side.checked_sub(POOL)? / 2 + 1;
+            }
+        }
+        Some(side as u32)
     }
 
     /// The five ReLU activations of AlexNet for an image scaled to [−1, 1] and LPIPS's input
@@ -149,7 +176,7 @@ impl Lpips {
             x = conv2d(x, weight.clone(), Some(bias.clone()), options).clamp_min(0.0);
             outputs.push(x.clone());
             if layer < 2 {
-                x = max_pool2d(x, MaxPoolOptions::new([3, 3]).with_stride([2, 2]));
+                x = max_pool2d(x, MaxPoolOptions::new([POOL, POOL]).with_stride([2, 2]));
             }
         }
         outputs
@@ -202,8 +229,24 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(folder.join("reference.json")).unwrap()).unwrap();
         let (a, b) = common::metrics::test_pair(80, 64);
         let expected = reference["lpips"].as_f64().unwrap();
-        let got = lpips.distance(&a, &b);
+        let got = lpips.distance(&a, &b).expect("80 × 64 is large enough");
         assert!((got - expected).abs() < 1e-4 * expected.max(1.0), "{got} vs {expected}");
-        assert!(lpips.distance(&a, &a).abs() < 1e-9);
+        assert!(lpips.distance(&a, &a).expect("the same size").abs() < 1e-9);
+    }
+
+    /// AlexNet needs 31 pixels a side (11-px stride-4 convolution, then two 3-px poolings);
+    /// below that LPIPS is not defined and is said as such, not a panic in the convolution.
+    #[test]
+    #[ignore = "needs the LPIPS weights: scripts/fetch-lpips.sh, then cargo test -p eval -- --ignored (CI does)"]
+    fn lpips_of_an_image_too_small_is_none() {
+        let lpips =
+            Lpips::load(&Lpips::default_folder(), &Device::flex()).unwrap_or_else(|err| panic!("{err}"));
+        assert_eq!(lpips.smallest_side(), 31);
+        let (a, b) = common::metrics::test_pair(31, 40);
+        assert!(lpips.distance(&a, &b).is_some_and(|d| d > 0.0));
+        let (a, b) = common::metrics::test_pair(30, 40);
+        assert_eq!(lpips.distance(&a, &b), None);
+        let (a, b) = common::metrics::test_pair(24, 16);
+        assert_eq!(lpips.distance(&a, &b), None);
     }
 }

@@ -90,7 +90,7 @@ impl Results {
             psnr: psnr(drawn, input),
             ssim: ssim(drawn, input),
             gmsd: gmsd(input, drawn),
-            lpips: lpips.map(|net| net.distance(drawn, input)),
+            lpips: lpips.and_then(|net| net.distance(drawn, input)),
             seconds: drawing.seconds,
             anatomy: drawing.anatomy,
         };

@@ -116,9 +116,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             line += &format!(" {psnr:.3} dB {:.1} KB", kb(svg.len()));
             if let Some(net) = &lpips {
                 let (width, height) = loaded.image.dimensions();
-                let distance = net.distance(&render_svg(&svg, width, height)?, &loaded.image);
-                sums[pass].2 += distance;
-                line += &format!(" LPIPS {distance:.4}");
+                if let Some(distance) = net.distance(&render_svg(&svg, width, height)?, &loaded.image) {
+                    sums[pass].2 += distance;
+                    line += &format!(" LPIPS {distance:.4}");
+                }
             }
             if pass > 0 {
                 line += &format!(" ({seconds:.2} s)");

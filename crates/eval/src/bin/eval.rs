@@ -359,6 +359,7 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
 
     let mut results = Results::default();
     let mut evaluated = 0;
+    let mut too_small_for_lpips = Vec::new();
     for (index, path) in images.iter().enumerate() {
         let loaded = match load(path, args.size) {
             Ok(loaded) => loaded,
@@ -368,6 +369,10 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
             }
         };
         evaluated += 1;
+        let (width, height) = loaded.image.dimensions();
+        if lpips.as_ref().is_some_and(|net| width.min(height) < net.smallest_side()) {
+            too_small_for_lpips.push(path.display().to_string());
+        }
         let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let stem = path.file_stem().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let png = scratch.join("input.png");
@@ -429,6 +434,13 @@ fn run_eval(args: Args) -> anyhow::Result<()> {
         bail!("{}: no readable images", args.dir.display());
     }
 
+    if let (Some(net), false) = (&lpips, too_small_for_lpips.is_empty()) {
+        notes.push(format!(
+            "LPIPS is not defined under {} pixels a side, so its column is empty: {}.",
+            net.smallest_side(),
+            too_small_for_lpips.join(", ")
+        ));
+    }
     let (sheet, columns) = results.sheet(160);
     write_png_marked(&sheet_path, &sheet, MARK).with_context(|| sheet_path.display().to_string())?;
     let header = Header {
