@@ -210,8 +210,10 @@ pub struct OptimizerState {
     pub seconds: f64,
     /// The mean meta-loss of the updates since the last score, one a score.
     pub losses: Vec<f64>,
-    /// Each score: (updates, mean PSNR of F with E_o, without, on the validation drawings).
-    pub scores: Vec<(usize, f64, f64)>,
+    /// Mean PSNR of F with Adam alone on the validation drawings: what every score is against.
+    pub adam_alone: f64,
+    /// Each score: (updates, mean PSNR of F with E_o on the validation drawings).
+    pub scores: Vec<(usize, f64)>,
     /// The configuration, as run.
     pub config: OptimizerConfig,
 }
@@ -455,7 +457,8 @@ pub fn train_optimizer(
                 update: 0,
                 seconds: 0.0,
                 losses: Vec::new(),
-                scores: vec![(0, f64::NAN, adam_alone)],
+                adam_alone,
+                scores: Vec::new(),
                 config: config.clone(),
             };
             (network, state)
@@ -470,7 +473,7 @@ pub fn train_optimizer(
         file.training = Some(serde_json::to_string(state).expect("the state serializes"));
         Ok(file.save(&checkpoint)?)
     };
-    let adam_alone = state.scores.first().map_or(f64::NAN, |s| s.2);
+    let adam_alone = state.adam_alone;
     let mut losses = Vec::new();
     while state.update < config.train.updates {
         let epoch = state.update / cases.len().max(1);
@@ -500,7 +503,7 @@ pub fn train_optimizer(
             let with =
                 score(&held, Some(&network.valid()), config.rollout.steps, config.scoring.seconds, &inner);
             if !interrupted() {
-                state.scores.push((state.update, with, adam_alone));
+                state.scores.push((state.update, with));
                 say!(
                     "update {} ({steps} steps a rollout): mean log error ratio {mean:+.4}; F for {} s with E_o {with:.3} dB, Adam alone {adam_alone:.3} ({:+.3}); {:.0} s",
                     state.update,

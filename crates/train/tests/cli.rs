@@ -269,3 +269,69 @@ fn the_mover_trains_resumes_exactly_and_exports() {
     assert!(err.contains("validation.images") && err.matches("missing.png").count() == 1, "{err}");
     assert!(!err.contains("points in"), "the teacher worked first: {err}");
 }
+
+const OPTIMIZER: &str = env!("CARGO_BIN_EXE_train-optimizer");
+
+/// `train-optimizer` on one small image: four updates in one run give the weights of two, then
+/// two more resumed (the optimizer and the scores restored), and `export-model` ships them.
+#[test]
+fn the_learned_optimizer_trains_resumes_exactly_and_exports() {
+    let dir = scratch("optimizer");
+    let image = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/astronaut.jpg");
+    let held = dir.join("held-out.png");
+    image::open(&image).unwrap().fliph().save(&held).unwrap();
+    let config = |updates: usize| {
+        let path = dir.join(format!("optimizer-{updates}.toml"));
+        let drawings = |image: &Path| format!("images = [{image:?}]\npaths = [\"24\"]\nsize = 48\n");
+        let text = format!(
+            "[data]\n{}[rollout]\nsteps = 2\ngrow = 1\n[train]\nupdates = {updates}\nlearning_rate = 1e-3\n\
+             seed = 1\nfrom_mover = true\nevery = 2\n[validation]\n{}[scoring]\nseconds = 0.05\n",
+            drawings(&image),
+            drawings(&held)
+        );
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let train = |config: &str, out: &Path, extra: &[&str]| {
+        let output = Command::new(OPTIMIZER)
+            .args(["--config", config, "--out", out.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert!(output.status.success(), "{stderr}");
+        stderr
+    };
+    let (once, twice) = (dir.join("once"), dir.join("twice"));
+    let log = train(&config(4), &once, &[]);
+    assert_eq!(log.matches("F for 0.05 s with E_o").count(), 2, "{log}");
+    train(&config(2), &twice, &[]);
+    let err = fails(OPTIMIZER, &["--config", &config(4), "--out", twice.to_str().unwrap()]);
+    assert!(err.contains("optimizer.ckpt exists") && err.contains("--resume"), "{err}");
+    train(&config(4), &twice, &["--resume"]);
+    let file = |run: &Path| model::OptimizerCheckpoint::load(&run.join("optimizer.ckpt")).unwrap();
+    let state = |run: &Path| -> train::OptimizerState {
+        serde_json::from_str(&file(run).training.expect("the trainer's state")).unwrap()
+    };
+    let (a, b) = (file(&once), file(&twice));
+    assert!(a.optimizer.is_some() && b.optimizer.is_some());
+    assert_eq!(a.weights_checksum(), b.weights_checksum());
+    let (a, b) = (state(&once), state(&twice));
+    assert_eq!((a.update, b.update), (4, 4));
+    assert!(a.adam_alone.is_finite() && a.adam_alone == b.adam_alone, "{a:?} {b:?}");
+    assert_eq!(a.scores.iter().map(|s| s.0).collect::<Vec<_>>(), [2, 4]);
+    assert_eq!(b.scores.iter().map(|s| s.0).collect::<Vec<_>>(), [2, 4]);
+    assert!(a.scores.iter().chain(&b.scores).all(|s| s.1.is_finite()), "{a:?} {b:?}");
+
+    let shipped = dir.join("shipped.ckpt");
+    let output = Command::new(EXPORT)
+        .args([once.join("optimizer.ckpt").to_str().unwrap(), shipped.to_str().unwrap(), "--dtype", "f32"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success() && stdout.contains("optimize model"), "{stdout}");
+    let exported = model::OptimizerCheckpoint::load(&shipped).unwrap();
+    assert!(exported.optimizer.is_none());
+    assert_eq!(exported.weights_checksum(), file(&once).weights_checksum());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

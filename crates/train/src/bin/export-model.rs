@@ -4,20 +4,23 @@
 //!
 //! Drops the optimizer state and stores the weights in half precision by default; the model
 //! configuration, stage and the trainer's record (steps, seconds, final losses) are kept. A
-//! mover's file (`train-mover`'s) is exported the same way.
+//! mover's file (`train-mover`'s) and a learned optimizer's (`train-optimizer`'s) are exported
+//! the same way.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use burn::tensor::DType;
 use clap::{Parser, ValueEnum};
-use model::{Checkpoint, CheckpointError, MOVER_STAGE, MoverCheckpoint};
+use model::{
+    Checkpoint, CheckpointError, MOVER_STAGE, MoverCheckpoint, OPTIMIZER_STAGE, OptimizerCheckpoint,
+};
 
 /// Export a training checkpoint for inference.
 #[derive(Parser, Debug)]
 #[command(name = "export-model", version)]
 struct Args {
-    /// A checkpoint written by train-coarse, train-refine or train-mover.
+    /// A checkpoint written by train-coarse, train-refine, train-mover or train-optimizer.
     input: PathBuf,
     /// Where to write the inference checkpoint (atomically; never over the input).
     output: PathBuf,
@@ -44,11 +47,17 @@ fn main() -> ExitCode {
         common::say!("export-model: {err}");
         return ExitCode::FAILURE;
     }
+    // A mover's file, else E_o's, else E_c's or E_r's (a damaged file, or no checkpoint, is said
+    // as the first reader finds it).
     let exported = match MoverCheckpoint::load(&args.input) {
-        // E_c's or E_r's file (a mover's, damaged, or no checkpoint, is said as read).
-        Err(CheckpointError::WrongStage { .. }) => Checkpoint::load(&args.input)
-            .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
-            .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint.stage.name())),
+        Err(CheckpointError::WrongStage { .. }) => match OptimizerCheckpoint::load(&args.input) {
+            Err(CheckpointError::WrongStage { .. }) => Checkpoint::load(&args.input)
+                .and_then(|checkpoint| checkpoint.for_inference(dtype, &args.input))
+                .and_then(|checkpoint| checkpoint.save(&args.output).map(|()| checkpoint.stage.name())),
+            read => read
+                .and_then(|file| file.for_inference(dtype, &args.input))
+                .and_then(|file| file.save(&args.output).map(|()| OPTIMIZER_STAGE)),
+        },
         read => read
             .and_then(|file| file.for_inference(dtype, &args.input))
             .and_then(|file| file.save(&args.output).map(|()| MOVER_STAGE)),
