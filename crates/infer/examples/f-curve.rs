@@ -2,7 +2,7 @@
 //! from it for `--seconds`, the PSNR of its best state so far read at every mark.
 //!
 //! `cargo run --release -p infer --example f-curve -- DIR [--paths 500|auto] [--seconds 10]
-//!  [--lr-scale 1] [--decay] [--refit-every 0]`
+//!  [--lr-scale 1] [--as-drawn false] [--fixed-alpha false]`
 //!
 //! Prints one line per image (its B, then the PSNR at each mark) and the means.
 
@@ -12,7 +12,9 @@ use std::path::PathBuf;
 use burn::tensor::Device;
 use clap::Parser;
 use common::decode::load;
-use infer::{FinetuneOptions, Job, Limit, Models, PathBudget, finetune_with_progress, run};
+use infer::{
+    FinetuneOptions, Job, Learned, Limit, ModelSource, Models, PathBudget, finetune_with_progress, run,
+};
 
 /// Time SuperSVG-F on a folder.
 #[derive(Parser, Debug)]
@@ -31,18 +33,15 @@ struct Args {
     /// Every learning rate times this.
     #[arg(long, default_value_t = 1.0)]
     lr_scale: f32,
-    /// [`FinetuneOptions::decay`].
-    #[arg(long)]
-    decay: bool,
-    /// [`FinetuneOptions::refit_every`].
-    #[arg(long, default_value_t = 0)]
-    refit_every: usize,
     /// [`FinetuneOptions::as_drawn`].
-    #[arg(long)]
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     as_drawn: bool,
     /// [`FinetuneOptions::fixed_alpha`].
-    #[arg(long)]
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     fixed_alpha: bool,
+    /// E_o's file (`train-optimizer`'s): its steps first, then Adam.
+    #[arg(long)]
+    optimizer: Option<PathBuf>,
     /// Only the first N images.
     #[arg(long)]
     limit: Option<usize>,
@@ -53,18 +52,24 @@ const MARKS: [f64; 7] = [0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0];
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let device = Device::flex();
-    let models = Models::bundled(true, &device)?;
+    let mut models = Models::bundled(true, &device)?;
+    if let Some(file) = &args.optimizer {
+        models = models.with_optimizer(&ModelSource::File(file.clone()), &device)?;
+    }
+    let learned = models.optimizer.as_ref().map(|optimizer| Learned {
+        network: optimizer.network.clone(),
+        steps: optimizer.steps(),
+        device: device.clone(),
+    });
     let defaults = FinetuneOptions::default();
     let options = FinetuneOptions {
         limit: Limit::Seconds(args.seconds),
         lr_points: defaults.lr_points * args.lr_scale,
         lr_outline_points: defaults.lr_outline_points * args.lr_scale,
         lr_colors: defaults.lr_colors * args.lr_scale,
-        decay: args.decay,
-        refit_every: args.refit_every,
         as_drawn: args.as_drawn,
         fixed_alpha: args.fixed_alpha,
-        learned: None,
+        learned,
     };
     let marks: Vec<f64> = MARKS.iter().copied().filter(|&m| m <= args.seconds).collect();
     let mut sums = vec![0.0; marks.len() + 2];

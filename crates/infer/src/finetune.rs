@@ -43,13 +43,12 @@ pub struct FinetuneOptions {
     pub lr_outline_points: f32,
     /// Adam learning rate of colours and opacity.
     pub lr_colors: f32,
-    /// The learning rates decay along a half cosine to zero at the limit.
-    pub decay: bool,
-    /// Every this many steps every fill is refitted in closed form (0: never).
-    pub refit_every: usize,
-    /// The outlines move as B drew them, never fitted with one path.
+    /// The outlines move as B drew them (the default), never fitted with one path: a fitted
+    /// path starts from a drawing worse than B's, which the first second of F spends undoing
+    /// (docs/eval/finetune.md).
     pub as_drawn: bool,
-    /// Opacity is left as drawn.
+    /// Opacity is left as drawn (the default): B's shapes are opaque but for the few it made
+    /// translucent, and a step of opacity trades the fill against what lies under it.
     pub fixed_alpha: bool,
     /// The learned optimizer's steps, taken first (none: Adam alone).
     pub learned: Option<Learned>,
@@ -78,7 +77,9 @@ const LR_OUTLINE: f32 = 2e-4;
 /// composites in f32, the SVG's renderers in 8 bits a layer: where translucent paths stack
 /// deep, at the PSNRs of flat art, the two part, and the window's best can draw worse than an
 /// earlier state, even worse than B (measured in docs/eval/finetune.md). Checking by steps
-/// keeps a given number of steps reproducible; a check costs one painting of the scene.
+/// keeps a given number of steps reproducible; a check costs one painting of the scene, and
+/// ten steps are what F takes in about a fifth of a second on a photo at 500 paths, so a second
+/// of F is checked a few times, not only at its end.
 const CHECK_EVERY: usize = 10;
 
 impl Default for FinetuneOptions {
@@ -91,8 +92,6 @@ impl Default for FinetuneOptions {
             lr_points: 1e-3,
             lr_outline_points: LR_OUTLINE,
             lr_colors: 3e-2,
-            decay: false,
-            refit_every: 0,
             as_drawn: true,
             fixed_alpha: true,
             learned: None,
@@ -114,8 +113,8 @@ pub struct Progress {
 }
 
 /// Fine-tunes every shape of `scene` against its image: every point, colour (or ramp) and
-/// opacity. The regions' outlines move as drawn or each fitted with one path, whichever writes
-/// less ([`starting_outlines`]). The scene ends in the state, of those checked (every
+/// opacity. The regions' outlines move as drawn ([`FinetuneOptions::as_drawn`]) or each fitted
+/// with one path, whichever writes less ([`starting_outlines`]). The scene ends in the state, of those checked (every
 /// [`CHECK_EVERY`] steps and the last best), that the exact renderer draws best; if none beats
 /// the scene as it was, it keeps its old shapes, as it does when no step is taken. Returns the
 /// number of optimizer steps taken (0 when the scene has nothing to move).
@@ -210,22 +209,8 @@ pub fn finetune_with_progress(
             check(&best.1, &mut kept);
             unchecked = false;
         }
-        let fraction = match options.limit {
-            Limit::Steps(total) => steps as f64 / total.max(1) as f64,
-            Limit::Seconds(limit) => started.elapsed().as_secs_f64() / limit.max(1e-9),
-        };
-        let factor =
-            if options.decay { 0.5 * (1.0 + (std::f64::consts::PI * fraction.min(1.0)).cos()) } else { 1.0 };
-        let scaled: Vec<f32> = rates.iter().map(|r| r * factor as f32).collect();
-        adam.step(&scaled, &mut params, &layout.gradient(&gradients));
+        adam.step(&rates, &mut params, &layout.gradient(&gradients));
         steps += 1;
-        if options.refit_every > 0 && steps % options.refit_every == 0 {
-            let moved = layout.outlines(&best.1, &params);
-            let shapes: Vec<Shape> = moved.into_iter().map(Shape::from).collect();
-            let fitted = crate::recolour::refitted(&image, &shapes);
-            let outlines: Vec<Outline> = fitted.iter().map(|s| s.to_outline().expect("finite")).collect();
-            params = layout.params(&outlines);
-        }
         let progress = Progress {
             seconds: started.elapsed().as_secs_f64(),
             steps,

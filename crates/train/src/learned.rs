@@ -210,12 +210,23 @@ pub struct OptimizerState {
     pub seconds: f64,
     /// The mean meta-loss of the updates since the last score, one a score.
     pub losses: Vec<f64>,
-    /// Mean PSNR of F with Adam alone on the validation drawings: what every score is against.
-    pub adam_alone: f64,
-    /// Each score: (updates, mean PSNR of F with E_o on the validation drawings).
-    pub scores: Vec<(usize, f64)>,
+    /// Each score after so many updates.
+    pub scores: Vec<OptimizerScore>,
     /// The configuration, as run.
     pub config: OptimizerConfig,
+}
+
+/// F on the validation drawings with E_o's steps first and with Adam alone, each drawing run
+/// both ways one after the other: F stops by the clock, so the two share whatever else the
+/// machine was doing.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OptimizerScore {
+    /// Updates done.
+    pub update: usize,
+    /// Mean PSNR (dB) of F with E_o.
+    pub with: f64,
+    /// Mean PSNR (dB) of F with Adam alone.
+    pub without: f64,
 }
 
 /// One drawing to learn on or score with: B's drawing of an image, its outlines as F moves them,
@@ -361,32 +372,30 @@ pub struct OptimizerSummary {
     pub checkpoint: PathBuf,
 }
 
-/// The mean PSNR of F for `seconds` on every validation drawing, with `network`'s steps first
-/// (or Adam alone without).
+/// F for `seconds` on every validation drawing, with `network`'s `steps` first and with Adam
+/// alone, paired drawing by drawing; `None` when interrupted.
 fn score(
     cases: &[Case],
-    network: Option<&LearnedOptimizer>,
-    steps: usize,
-    seconds: f64,
+    (network, steps): (&LearnedOptimizer, usize),
+    (update, seconds): (usize, f64),
     device: &Device,
-) -> f64 {
-    let mut sum = 0.0;
+) -> Option<OptimizerScore> {
+    let learned = Learned { network: Arc::new(network.clone()), steps, device: device.clone() };
+    let (mut with, mut without) = (0.0, 0.0);
     for case in cases {
-        if interrupted() {
-            return f64::NAN;
+        for (learned, sum) in [(Some(learned.clone()), &mut with), (None, &mut without)] {
+            if interrupted() {
+                return None;
+            }
+            let options =
+                FinetuneOptions { limit: Limit::Seconds(seconds), learned, ..FinetuneOptions::default() };
+            let mut scene = case.scene.clone();
+            finetune(&mut scene, &options);
+            *sum += common::psnr(&scene.canvas_image(), case.scene.target());
         }
-        let learned = network.map(|network| Learned {
-            network: Arc::new(network.clone()),
-            steps,
-            device: device.clone(),
-        });
-        let options =
-            FinetuneOptions { limit: Limit::Seconds(seconds), learned, ..FinetuneOptions::default() };
-        let mut scene = case.scene.clone();
-        finetune(&mut scene, &options);
-        sum += common::psnr(&scene.canvas_image(), case.scene.target());
     }
-    sum / cases.len().max(1) as f64
+    let n = cases.len().max(1) as f64;
+    Some(OptimizerScore { update, with: with / n, without: without / n })
 }
 
 /// Trains E_o as `config` says in `dir` on `device` (an autodiff device).
@@ -448,16 +457,10 @@ pub fn train_optimizer(
             }
             // It starts by moving nothing: the first rollouts measure the drawing as B left it.
             .silenced();
-            let adam_alone = score(&held, None, 0, config.scoring.seconds, &inner);
-            say!(
-                "F with Adam alone for {} s: {adam_alone:.3} dB on the validation drawings",
-                config.scoring.seconds
-            );
             let state = OptimizerState {
                 update: 0,
                 seconds: 0.0,
                 losses: Vec::new(),
-                adam_alone,
                 scores: Vec::new(),
                 config: config.clone(),
             };
@@ -473,7 +476,6 @@ pub fn train_optimizer(
         file.training = Some(serde_json::to_string(state).expect("the state serializes"));
         Ok(file.save(&checkpoint)?)
     };
-    let adam_alone = state.adam_alone;
     let mut losses = Vec::new();
     while state.update < config.train.updates {
         let epoch = state.update / cases.len().max(1);
@@ -500,15 +502,16 @@ pub fn train_optimizer(
             let mean = losses.iter().sum::<f64>() / losses.len().max(1) as f64;
             state.losses.push(mean);
             losses.clear();
-            let with =
-                score(&held, Some(&network.valid()), config.rollout.steps, config.scoring.seconds, &inner);
-            if !interrupted() {
-                state.scores.push((state.update, with));
+            let scored = (&network.valid(), config.rollout.steps);
+            if let Some(score) = score(&held, scored, (state.update, config.scoring.seconds), &inner) {
+                state.scores.push(score);
                 say!(
-                    "update {} ({steps} steps a rollout): mean log error ratio {mean:+.4}; F for {} s with E_o {with:.3} dB, Adam alone {adam_alone:.3} ({:+.3}); {:.0} s",
+                    "update {} ({steps} steps a rollout): mean log error ratio {mean:+.4}; F for {} s with E_o {:.3} dB, Adam alone {:.3} ({:+.3}); {:.0} s",
                     state.update,
                     config.scoring.seconds,
-                    with - adam_alone,
+                    score.with,
+                    score.without,
+                    score.with - score.without,
                     state.seconds
                 );
             }

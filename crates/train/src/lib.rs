@@ -26,8 +26,8 @@ pub use data::{
 };
 pub use inference::{AtInference, CoarseCheck, CoarseScores, RefineCheck, RefineScores};
 pub use learned::{
-    Case, Drawings, OptimizerConfig, OptimizerError, OptimizerState, OptimizerSummary, OptimizerTraining,
-    Rollout, Scoring, optimizer_checkpoint, rollout, train_optimizer,
+    Case, Drawings, OptimizerConfig, OptimizerError, OptimizerScore, OptimizerState, OptimizerSummary,
+    OptimizerTraining, Rollout, Scoring, optimizer_checkpoint, rollout, train_optimizer,
 };
 pub use mover::{
     Begin, MoverCheck, MoverConfig, MoverData, MoverError, MoverScore, MoverState, MoverSummary,
