@@ -171,8 +171,9 @@ def test_the_gil_is_released_while_it_works():
     done.set()
     counter.join()
     during = [t for t in ticks if started < t < started + took]
-    # Held, the other thread would not run at all until the call returned.
-    assert took > 0.5 and len(during) >= took / 0.005 / 4, (took, len(during))
+    # Held, the other thread would not run at all until the call returned: not one tick of it
+    # would fall inside the call (how many do depends on the machine's load, so none is counted).
+    assert took > 0.5 and during, (took, len(ticks))
 
 
 def test_ctrl_c_stops_a_long_fine_tuning():

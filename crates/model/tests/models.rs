@@ -355,8 +355,12 @@ fn backends_agree_on_outputs() {
         out
     };
     let reference = run(&flex);
-    for backend in [Backend::Ndarray, Backend::Wgpu].into_iter().filter(|b| b.is_compiled()) {
-        let other = run(&backend.device().unwrap());
+    // The backends this build promises: ndarray always (a dev-dependency), wgpu with the crate's
+    // `wgpu` feature. None is skipped: one that cannot be created fails the test.
+    let promised = [Backend::Ndarray].into_iter().chain(cfg!(feature = "wgpu").then_some(Backend::Wgpu));
+    for backend in promised {
+        let other = run(&backend.device().unwrap_or_else(|err| panic!("{backend}: {err}")));
+        assert_eq!(reference.len(), other.len(), "{backend}");
         let gap = reference.iter().zip(&other).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
         assert!(gap <= 1e-4, "{backend}: outputs differ by {gap}");
     }
