@@ -51,7 +51,10 @@ pub struct Panel {
 
 /// Size of one panel's plot area and the margins around it, in SVG units.
 const PLOT: (f64, f64) = (420.0, 280.0);
-const LEFT: f64 = 70.0;
+const LEFT: f64 = 84.0;
+/// About the width of a digit of the tick labels (12 px text), to keep the axis label clear of
+/// the widest one.
+const DIGIT: f64 = 7.0;
 const TOP: f64 = 40.0;
 const GAP: f64 = 110.0;
 const LEGEND_ROW: f64 = 20.0;
@@ -192,7 +195,9 @@ fn draw_panel(svg: &mut String, left: f64, panel: &Panel) {
         TOP - 14.0,
         escape(&panel.title)
     );
-    for (value, text) in y_axis.ticks() {
+    let y_ticks = y_axis.ticks();
+    let widest = y_ticks.iter().map(|(_, text)| text.chars().count()).max().unwrap_or(0) as f64;
+    for (value, text) in y_ticks {
         let level = y(value);
         let _ = write!(
             svg,
@@ -215,7 +220,7 @@ fn draw_panel(svg: &mut String, left: f64, panel: &Panel) {
         left + width / 2.0,
         bottom + 36.0,
         escape(&panel.x_label),
-        left - 48.0,
+        left - 14.0 - widest * DIGIT,
         TOP + height / 2.0,
         escape(&panel.y_label)
     );
