@@ -73,14 +73,18 @@ const WHITE: [f32; 3] = [1.0; 3];
 /// (the best of 1e-4, 2e-4 and 3e-4 on the emoji in docs/eval/finetune.md).
 const LR_OUTLINE: f32 = 2e-4;
 
-/// Every this many steps the best state so far is drawn as the SVG shows it. The window
-/// composites in f32, the SVG's renderers in 8 bits a layer: where translucent paths stack
-/// deep, at the PSNRs of flat art, the two part, and the window's best can draw worse than an
-/// earlier state, even worse than B (measured in docs/eval/finetune.md). Checking by steps
-/// keeps a given number of steps reproducible; a check costs one painting of the scene, and
-/// ten steps are what F takes in about a fifth of a second on a photo at 500 paths, so a second
-/// of F is checked a few times, not only at its end.
+/// Every this many steps the best state so far is drawn as the SVG shows it, once the window
+/// says it is past [`PARTING_PSNR`]. The window composites in f32, the SVG's renderers in 8
+/// bits a layer: where translucent paths stack deep, at the PSNRs of flat art, the two part,
+/// and the window's best can draw worse than an earlier state, even worse than B (measured in
+/// docs/eval/finetune.md). Checking by steps keeps a given number of steps reproducible.
 const CHECK_EVERY: usize = 10;
+
+/// The window's PSNR (dB) from which F's best state is also checked along the way, not only
+/// at its end: below it the window and the SVG agree (to 54 dB on the photos), so a check
+/// would only cost its painting of the scene, at 2000 paths two steps' time of the twenty a
+/// second takes (0.04–0.08 dB of a second's gain on the photos, docs/eval/finetune.md).
+const PARTING_PSNR: f64 = 48.0;
 
 impl Default for FinetuneOptions {
     /// 100 steps; a path's points at 1e-3 (about half a pixel a step at 512 px, the
@@ -115,7 +119,7 @@ pub struct Progress {
 /// Fine-tunes every shape of `scene` against its image: every point, colour (or ramp) and
 /// opacity. The regions' outlines move as drawn ([`FinetuneOptions::as_drawn`]) or each fitted
 /// with one path, whichever writes less ([`starting_outlines`]). The scene ends in the state, of those checked (every
-/// [`CHECK_EVERY`] steps and the last best), that the exact renderer draws best; if none beats
+/// [`CHECK_EVERY`] steps past [`PARTING_PSNR`], and the last best), that the exact renderer draws best; if none beats
 /// the scene as it was, it keeps its old shapes, as it does when no step is taken. Returns the
 /// number of optimizer steps taken (0 when the scene has nothing to move).
 pub fn finetune(scene: &mut Scene, options: &FinetuneOptions) -> usize {
@@ -205,7 +209,8 @@ pub fn finetune_with_progress(
         if loss < best.0 {
             (best, unchecked) = ((loss, outlines), true);
         }
-        if unchecked && steps % CHECK_EVERY == 0 && steps > 0 {
+        let parting = psnr_of_mse(best.0) >= PARTING_PSNR;
+        if unchecked && parting && steps % CHECK_EVERY == 0 && steps > 0 {
             check(&best.1, &mut kept);
             unchecked = false;
         }
@@ -405,8 +410,9 @@ mod tests {
         Scene::drawn(image, segmentation, drawing.placed(), drawing.canvas.clone())
     }
 
-    /// More steps never end in a worse drawing than fewer, counted in checks: a run's check
-    /// after `CHECK_EVERY · k` steps is the shorter run's last. Nor worse than B.
+    /// More steps never end in a worse drawing than fewer, counted in checks: past
+    /// [`PARTING_PSNR`] a run's check after `CHECK_EVERY · k` steps is the shorter run's last,
+    /// below it the window's best is the SVG's. Nor worse than B.
     #[test]
     fn more_steps_never_draw_worse() {
         let b = discs();
