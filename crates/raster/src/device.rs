@@ -52,15 +52,6 @@ impl Backend {
         }
     }
 
-    /// Whether this build can create the backend at all (ndarray and wgpu need their features).
-    pub fn is_compiled(self) -> bool {
-        match self {
-            Backend::Flex => true,
-            Backend::Ndarray => cfg!(feature = "ndarray"),
-            Backend::Wgpu => cfg!(feature = "wgpu"),
-        }
-    }
-
     /// The device for this backend, without autodiff (inference, exact evaluation).
     ///
     /// wgpu is initialized once per process and its device reused, so calling this repeatedly
