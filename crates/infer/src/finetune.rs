@@ -166,6 +166,13 @@ pub fn finetune_with_progress(
         Limit::Steps(total) => steps >= total,
         Limit::Seconds(limit) => started.elapsed().as_secs_f64() >= limit,
     };
+    // How far F has come after `steps` steps, its best state's error in the window `mse`.
+    let progress = |steps: usize, mse: f64| Progress {
+        seconds: started.elapsed().as_secs_f64(),
+        steps,
+        total_steps,
+        psnr: psnr_of_mse(mse),
+    };
     // E_o's steps first, each from the last; Adam goes on from the best state they reached.
     if let Some(learned) = &options.learned {
         let movable = scene.paths().iter().map(|placed| placed.origin != Origin::Background).collect();
@@ -178,13 +185,7 @@ pub fn finetune_with_progress(
             }
             outlines = next;
             steps += 1;
-            let progress = Progress {
-                seconds: started.elapsed().as_secs_f64(),
-                steps,
-                total_steps,
-                psnr: psnr_of_mse(best.0),
-            };
-            stopped = on_step(&progress).is_break();
+            stopped = on_step(&progress(steps, best.0)).is_break();
         }
         let loss = window.l2_outlines(&outlines);
         if loss < best.0 {
@@ -216,13 +217,7 @@ pub fn finetune_with_progress(
         }
         adam.step(&rates, &mut params, &layout.gradient(&gradients));
         steps += 1;
-        let progress = Progress {
-            seconds: started.elapsed().as_secs_f64(),
-            steps,
-            total_steps,
-            psnr: psnr_of_mse(best.0),
-        };
-        stopped = on_step(&progress).is_break();
+        stopped = on_step(&progress(steps, best.0)).is_break();
     }
     if steps > 0 && unchecked {
         check(&best.1, &mut kept);
